@@ -1,0 +1,3 @@
+from worldmind_local.cli import main
+
+raise SystemExit(main())

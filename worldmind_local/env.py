@@ -1,0 +1,178 @@
+"""The environment seam: tasks, observations, step results, and what a benchmark adapter provides.
+
+Every benchmark folder (`benchmarks/eb_*`) implements `BenchmarkAdapter`; every simulator backend
+(the symbolic `twin`, or the real `embodiedbench` wrapper) implements `Env`. Methods and the runner
+only ever see these types, so a memory or a prompt built on the twin carries over to the real
+simulator unchanged.
+
+The hot path (a twin step) must stay in the tens of microseconds, so `Observation` renders its text
+and state lazily: an environment hands over a snapshot plus a function, and the text is built only
+when somebody reads it (the judge reads one per verified action, not one per step).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+__all__ = [
+    "Task",
+    "Observation",
+    "StepResult",
+    "Env",
+    "BenchmarkAdapter",
+    "TaskDataError",
+    "UnknownActionError",
+]
+
+
+class TaskDataError(ValueError):
+    """A data file is malformed: the message names the file and the field."""
+
+    def __init__(self, path: Path | str, field_name: str, problem: str) -> None:
+        self.path = str(path)
+        self.field = field_name
+        super().__init__(f"{path}: field {field_name!r}: {problem}")
+
+
+class UnknownActionError(KeyError):
+    """An action name that is not in the episode's action space."""
+
+    def __str__(self) -> str:  # KeyError quotes its message; we want it readable
+        return str(self.args[0]) if self.args else "unknown action"
+
+
+@dataclass(frozen=True, slots=True)
+class Task:
+    """One episode's task.
+
+    `index` is the position in the subset's list (EmbodiedBench's episode number). `payload` is the
+    benchmark-specific record (an EB-ALFRED task record, an EB-Habitat episode, ...) that the
+    benchmark's own env knows how to read; nothing outside the benchmark looks inside it.
+    """
+
+    id: str
+    benchmark: str
+    subset: str
+    index: int
+    instruction: str
+    task_type: str
+    payload: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+    expert_plan: tuple[str, ...] | None = field(default=None, repr=False, compare=False)
+
+
+class Observation:
+    """What the agent gets after reset or a step.
+
+    `text` is the abstract state s-bar: what a perfect state abstractor would say (location, held
+    object, visible objects and their states). `image` is an optional PIL image. `state` is a
+    structured snapshot (JSON-serialisable dict) for logs and tests. Text and state may be given
+    directly or as zero-argument functions evaluated at most once; an env that passes functions
+    must bind them to an immutable snapshot of the state at that step.
+    """
+
+    __slots__ = ("_text", "_text_fn", "_state", "_state_fn", "image")
+
+    def __init__(
+        self,
+        text: str | Callable[[], str],
+        *,
+        state: dict[str, Any] | Callable[[], dict[str, Any]] | None = None,
+        image: Any | None = None,
+    ) -> None:
+        if callable(text):
+            self._text, self._text_fn = None, text
+        else:
+            self._text, self._text_fn = text, None
+        if callable(state):
+            self._state, self._state_fn = None, state
+        else:
+            self._state, self._state_fn = state if state is not None else {}, None
+        self.image = image
+
+    @property
+    def text(self) -> str:
+        if self._text is None:
+            assert self._text_fn is not None
+            self._text, self._text_fn = self._text_fn(), None
+        return self._text
+
+    @property
+    def state(self) -> dict[str, Any]:
+        if self._state is None:
+            assert self._state_fn is not None
+            self._state, self._state_fn = self._state_fn(), None
+        return self._state
+
+    def __repr__(self) -> str:
+        return f"Observation(text={self.text!r})"
+
+
+@dataclass(slots=True)
+class StepResult:
+    """The outcome of one action, with EmbodiedBench's exact feedback string.
+
+    `progress` is EmbodiedBench's task_progress after this step (the episode's GC is the last
+    step's value). `done` is set on success, on the step limit and on the invalid-action limit;
+    `end_reason` then says which ("success", "max_steps", "max_invalid", or a benchmark's own).
+    """
+
+    feedback: str
+    success: bool
+    progress: float
+    invalid: bool
+    done: bool
+    observation: Observation
+    end_reason: str | None = None
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+@runtime_checkable
+class Env(Protocol):
+    """One simulator backend of one benchmark. `actions` is valid after `reset` (the id is the position)."""
+
+    benchmark: str
+    actions: list[str]
+    max_steps: int
+    max_invalid: int | None
+
+    def reset(self, task: Task) -> Observation: ...
+
+    def step(self, action_id: int) -> StepResult: ...
+
+    def action_id(self, name: str) -> int:
+        """The id of an action name; raises UnknownActionError naming the action and the task."""
+        ...
+
+    def close(self) -> None: ...
+
+
+@runtime_checkable
+class BenchmarkAdapter(Protocol):
+    """What each `benchmarks/eb_*` package exposes as `ADAPTER`."""
+
+    name: str
+    subsets: tuple[str, ...]
+    default_top_k: int
+
+    def load_tasks(self, data_dir: Path, subset: str) -> list[Task]:
+        """EmbodiedBench's episodes of one subset, in EmbodiedBench's order. Raises TaskDataError."""
+        ...
+
+    def generate_tasks(self, seed: int, subset: str, n: int) -> list[Task]:
+        """Procedurally generated tasks in the same record format, deterministic per (seed, subset, n),
+        each with `expert_plan` set."""
+        ...
+
+    def make_env(self, kind: str = "twin", **options: Any) -> Env:
+        """`twin` (symbolic, always available) or `embodiedbench` (real simulator, optional)."""
+        ...
+
+    def has_data(self, data_dir: Path) -> bool: ...
+
+
+def plan_names(actions: Sequence[str], ids: Sequence[int]) -> list[str]:
+    """Action names of a list of ids (for logs)."""
+    return [actions[i] for i in ids]
