@@ -61,5 +61,7 @@ BACKENDS.register("hf", "models.hf_backend:HFBackend")
 BACKENDS.register("vllm", "models.vllm_backend:VLLMBackend")
 BACKENDS.register("openai", "models.openai_backend:OpenAIBackend")
 BACKENDS.register("replay", "models.replay_backend:ReplayBackend")
+BACKENDS.register("random", "models.random_backend:RandomBackend")
 
 METHODS = Registry("method")
+METHODS.register("worldmind", "worldmind_local.methods.worldmind:WorldMindMethod")

@@ -1,0 +1,44 @@
+"""Plain-text results table in the paper's shape: one row per method/model, SR and GC per subset + Avg."""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["format_results"]
+
+
+def _cell(v: Any) -> str:
+    return "-" if v is None else f"{v:.1f}"
+
+
+def format_results(results: dict[str, Any]) -> str:
+    lines: list[str] = []
+    for bench in sorted({row["benchmark"] for row in results.get("table", [])}):
+        rows = [r for r in results["table"] if r["benchmark"] == bench]
+        subsets: list[str] = []
+        for r in rows:
+            subsets += [s for s in r["subsets"] if s not in subsets]
+        head = ["method", "planner", "seed"] + [f"SR:{s}" for s in subsets] + ["SR:avg"] + \
+               [f"GC:{s}" for s in subsets] + ["GC:avg", "n"]
+        body = []
+        for r in rows:
+            opts = r.get("options") or {}
+            flags = [k for k in ("goal_experience", "process_experience", "verifier") if opts.get(k) is False]
+            method = r["method"] + "".join(f" -{f.split('_')[0]}" for f in flags)
+            if r.get("memory_budget"):
+                method += f" Mem{r['memory_budget']}"
+            n = sum(v["episodes"] for v in r["subsets"].values())
+            body.append(
+                [method, r["planner"].split(":", 1)[-1], str(r.get("seed"))]
+                + [_cell(r["subsets"].get(s, {}).get("SR")) for s in subsets] + [_cell(r["avg"]["SR"])]
+                + [_cell(r["subsets"].get(s, {}).get("GC")) for s in subsets] + [_cell(r["avg"]["GC"]), str(n)]
+            )
+        widths = [max(len(x) for x in col) for col in zip(head, *body)]
+        lines.append(f"== {bench} ==")
+        lines.append("  ".join(h.ljust(w) for h, w in zip(head, widths)))
+        lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths)) for row in body]
+    failed = [s for s in results.get("streams", []) if s.get("status") != "finished"]
+    if failed:
+        lines.append("failed streams:")
+        lines += [f"  {s['stream_id']}: {s.get('error')}" for s in failed]
+    return "\n".join(lines)

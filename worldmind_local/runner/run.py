@@ -1,0 +1,213 @@
+"""A whole run: build the shared backends and embedder once, run every stream concurrently, write results.
+
+Every model call of every stream goes to one backend object per model spec, so the engine sees a full
+batch (continuous batching on vLLM, the micro-batcher on hf). Streams never share memory or episode
+order, so each stream's results equal those of running it alone with a deterministic backend.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import datetime as _dt
+import hashlib
+import json
+import logging
+import shlex
+import sys
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+from worldmind_local.data import load_suite
+from worldmind_local.env import Task
+from worldmind_local.metrics import summarize_run
+from worldmind_local.registry import BENCHMARKS, METHODS
+from worldmind_local.runner.artifacts import RunDir, file_fingerprint, git_sha, package_versions
+from worldmind_local.runner.backends import LimitedBackend, role_backends
+from worldmind_local.runner.config import RunConfig, StreamSpec
+from worldmind_local.runner.progress import Progress
+from worldmind_local.runner.stream import StreamOutcome, StreamRunner
+
+__all__ = ["run_experiment", "RunResult"]
+
+log = logging.getLogger(__name__)
+
+
+class RunResult:
+    def __init__(self, run_dir: RunDir, outcomes: list[StreamOutcome], results: dict[str, Any]) -> None:
+        self.run_dir = run_dir
+        self.outcomes = outcomes
+        self.results = results
+
+    @property
+    def failed(self) -> list[StreamOutcome]:
+        return [o for o in self.outcomes if o.status != "finished"]
+
+
+def _suite_tasks(config: RunConfig, spec: StreamSpec) -> tuple[list[Task], str]:
+    suite = load_suite(
+        spec.benchmark, data_dir=config.data_dir, suite=config.suite,
+        seed=config.suite_seed, n_per_subset=config.suite_size,
+    )
+    tasks = suite.tasks(spec.subset)
+    if spec.limit is not None:
+        tasks = tasks[: spec.limit]
+    return tasks, suite.describe()
+
+
+def _tasks_hash(tasks: list[Task]) -> str:
+    h = hashlib.sha256()
+    for t in tasks:
+        h.update(json.dumps([t.id, t.subset, t.index, t.instruction, t.payload], sort_keys=True,
+                            default=str).encode())
+    return h.hexdigest()
+
+
+def _model_facts(addresses: list[str]) -> dict[str, Any]:
+    from models.specs import load_spec
+
+    facts: dict[str, Any] = {}
+    for address in addresses:
+        entry: dict[str, Any] = {}
+        try:
+            spec = load_spec(address)
+            entry = {"model_id": spec.model_id, "backend": spec.backend, "dtype": spec.dtype}
+            from models.weights import materialize  # cached folder; fast after the backend built it
+
+            folder = Path(materialize(spec))
+            files = sorted(p for p in folder.rglob("*") if p.is_file()) if folder.is_dir() else [folder]
+            entry["files"] = {str(p.relative_to(folder) if folder.is_dir() else p.name): file_fingerprint(p)
+                              for p in files}
+        except Exception as exc:  # facts are best effort; a spec-less backend (replay) has no files
+            entry.setdefault("note", f"no file fingerprint: {type(exc).__name__}: {exc}")
+        facts[address] = entry
+    return facts
+
+
+def _method(name: str) -> Any:
+    factory = METHODS.get(name)
+    return factory() if callable(factory) else factory
+
+
+async def run_experiment(
+    config: RunConfig,
+    out: str | Path,
+    *,
+    max_concurrency: int | None = None,
+    backends: Mapping[str, Any] | None = None,
+    embedder: Any | None = None,
+    progress: bool | None = None,
+    on_episode: Callable[[StreamSpec, dict[str, Any]], None] | None = None,
+    command: list[str] | None = None,
+) -> RunResult:
+    """Run (or resume) every stream of `config` into the run folder `out`.
+
+    `backends` maps spec address -> ready ChatBackend (tests, or a caller that owns its engines);
+    missing addresses are built with models.specs.make_backend.
+    """
+    run_dir = RunDir(out)
+    run_id = run_dir.root.name
+    tasks_by_stream: dict[str, list[Task]] = {}
+    data_facts: dict[str, Any] = {}
+    for spec in config.streams:
+        BENCHMARKS.get(spec.benchmark)  # unknown benchmark -> clear KeyError before any work
+        METHODS.get(spec.method)
+        tasks, described = _suite_tasks(config, spec)
+        tasks_by_stream[spec.stream_id] = tasks
+        data_facts[spec.stream_id] = {"suite": described, "tasks_sha256": _tasks_hash(tasks), "episodes": len(tasks)}
+
+    addresses = sorted({a for s in config.streams for a in (s.planner, s.judge_spec)})
+    manifest = {
+        "run_id": run_id,
+        "started_at": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "command": command or [Path(sys.argv[0]).name, *sys.argv[1:]],
+        "command_line": shlex.join(command or sys.argv),
+        "git_sha": git_sha(),
+        "packages": package_versions(),
+        "data": data_facts,
+    }
+    resumed = run_dir.open(config.identity(), manifest)
+
+    from worldmind_local.memory import Embedder, WorldKnowledgeRepository
+
+    built: dict[str, Any] = dict(backends or {})
+    owned: list[Any] = []
+    cache = None
+    if config.cache:
+        from models.cache import CachingBackend, ResponseCache
+
+        cache = ResponseCache(run_dir.cache_path)
+    for address in addresses:
+        if address not in built:
+            from models.specs import make_backend
+
+            built[address] = make_backend(address)
+            owned.append(built[address])
+        if cache is not None:
+            built[address] = CachingBackend(built[address], cache)
+    if max_concurrency:
+        limiter = asyncio.Semaphore(max_concurrency)
+        built = {a: LimitedBackend(b, limiter) for a, b in built.items()}
+    if not resumed or "models" not in (run_dir.read_manifest() or {}):
+        run_dir.update_manifest(models=_model_facts(addresses))
+
+    embedder = embedder if embedder is not None else Embedder()
+    bars = Progress(enabled=progress)
+    runners: list[StreamRunner] = []
+    for spec in config.streams:
+        from worldmind_local.methods.base import EpisodeContext, MethodConfig
+
+        adapter = BENCHMARKS.get(spec.benchmark)
+        opts = spec.options
+        method_config = MethodConfig(
+            top_k=opts.top_k if opts.top_k is not None else adapter.default_top_k,
+            goal_experience=opts.goal_experience,
+            process_experience=opts.process_experience,
+            verifier=opts.verifier,
+            verify=opts.verify,  # type: ignore[arg-type]
+            abstract_with=opts.abstract_with,  # type: ignore[arg-type]
+        )
+        if spec.memory_from:
+            memory = WorldKnowledgeRepository.load(spec.memory_from, embedder, budget=spec.memory_budget)
+        else:
+            memory = WorldKnowledgeRepository(embedder, budget=spec.memory_budget)
+        models, model_ids = role_backends(built, spec.planner, spec.judge_spec)
+
+        def make_context(view: Any, *, _models=models, _ids=model_ids, _seed=spec.seed,
+                         _cfg=method_config) -> Any:
+            return EpisodeContext(models=_models, model_ids=_ids, memory=view, embedder=embedder,
+                                  run_id=run_id, seed=_seed, config=_cfg)
+
+        stream_dir = run_dir.stream(spec.stream_id)
+        tasks = tasks_by_stream[spec.stream_id]
+        bar = bars.add(spec.stream_id, total=len(tasks))
+
+        def episode_done(s: StreamSpec, data: dict[str, Any], _bar=bar) -> None:
+            _bar.update(data)
+            if on_episode:
+                on_episode(s, data)
+
+        runners.append(StreamRunner(
+            spec, tasks=tasks, adapter=adapter, env_kind=config.env, method=_method(spec.method),
+            make_context=make_context, memory=memory, stream_dir=stream_dir, wave=config.wave,
+            on_episode=episode_done,
+        ))
+        bar.skip(len(stream_dir.read_episodes()))
+
+    try:
+        outcomes = list(await asyncio.gather(*(r.run() for r in runners)))
+    finally:
+        bars.close()
+        for backend in owned:
+            await backend.aclose()
+        if cache is not None:
+            cache.close()
+    results = summarize_run([
+        {"stream_id": o.stream_id, "spec": o.spec.model_dump(mode="json"), "status": o.status,
+         "error": o.error, "records": o.records}
+        for o in outcomes
+    ])
+    results["run_id"] = run_id
+    results["finished_at"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    run_dir.write_results(results)
+    return RunResult(run_dir, outcomes, results)
