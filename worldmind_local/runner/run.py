@@ -167,10 +167,13 @@ async def run_experiment(
             verify=opts.verify,  # type: ignore[arg-type]
             abstract_with=opts.abstract_with,  # type: ignore[arg-type]
         )
-        if spec.memory_from:
-            memory = WorldKnowledgeRepository.load(spec.memory_from, embedder, budget=spec.memory_budget)
-        else:
-            memory = WorldKnowledgeRepository(embedder, budget=spec.memory_budget)
+        def make_memory(_spec: StreamSpec = spec) -> Any:
+            if _spec.memory_from:
+                if not Path(_spec.memory_from).exists():
+                    raise FileNotFoundError(f"--memory-from {_spec.memory_from}: no such memory folder")
+                return WorldKnowledgeRepository.load(_spec.memory_from, embedder, budget=_spec.memory_budget)
+            return WorldKnowledgeRepository(embedder, budget=_spec.memory_budget)
+
         models, model_ids = role_backends(built, spec.planner, spec.judge_spec)
 
         def make_context(view: Any, *, _models=models, _ids=model_ids, _seed=spec.seed,
@@ -189,7 +192,7 @@ async def run_experiment(
 
         runners.append(StreamRunner(
             spec, tasks=tasks, adapter=adapter, env_kind=config.env, method=_method(spec.method),
-            make_context=make_context, memory=memory, stream_dir=stream_dir, wave=config.wave,
+            make_context=make_context, make_memory=make_memory, stream_dir=stream_dir, wave=config.wave,
             on_episode=episode_done,
         ))
         bar.skip(len(stream_dir.read_episodes()))

@@ -37,7 +37,8 @@ class StreamOutcome:
 
 
 class StreamRunner:
-    """Runs one stream. `make_context(memory)` builds the method's EpisodeContext for a memory view."""
+    """Runs one stream. `make_memory()` builds its initial WKR; `make_context(memory)` the method's
+    EpisodeContext for a memory view (the stream memory, or a wave's snapshot)."""
 
     def __init__(
         self,
@@ -48,7 +49,7 @@ class StreamRunner:
         env_kind: str,
         method: Any,
         make_context: Callable[[Any], Any],
-        memory: Any | None,
+        make_memory: Callable[[], Any] | None,
         stream_dir: StreamDir,
         wave: int = 1,
         on_episode: Callable[[StreamSpec, dict[str, Any]], None] | None = None,
@@ -59,7 +60,8 @@ class StreamRunner:
         self.env_kind = env_kind
         self.method = method
         self.make_context = make_context
-        self.memory = memory
+        self.make_memory = make_memory
+        self.memory: Any | None = None
         self.dir = stream_dir
         self.wave = wave
         self.on_episode = on_episode
@@ -124,6 +126,8 @@ class StreamRunner:
         self.dir.ensure()
         outcome = StreamOutcome(self.spec.stream_id, self.spec, status="failed")
         try:
+            # Built here, not by the caller: a stream whose memory cannot load fails alone.
+            self.memory = self.make_memory() if self.make_memory else None
             records = self.restore()
             outcome.records = records
             if self.memory is not None and (records or not self.dir.memory_path.exists()):
