@@ -20,6 +20,7 @@ writing) is dropped and that episode re-runs.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import subprocess
@@ -62,11 +63,21 @@ def git_sha() -> str | None:
 
 
 def file_fingerprint(path: Path, *, full_limit: int = 64 << 20) -> str:
-    """sha256 of the file; files over `full_limit` bytes hash size + first and last 16 MiB (marked)."""
+    """sha256 of the file; files over `full_limit` bytes hash size + first and last 16 MiB (marked).
+
+    Memoised on (path, size, mtime): a process that opens many runs hashes each weights file once.
+    """
+    st = path.stat()
+    return _fingerprint(str(path.resolve()), st.st_size, st.st_mtime_ns, full_limit)
+
+
+@functools.lru_cache(maxsize=4096)
+def _fingerprint(path_str: str, size: int, mtime_ns: int, full_limit: int) -> str:
     import hashlib
 
+    path = Path(path_str)
+
     h = hashlib.sha256()
-    size = path.stat().st_size
     with path.open("rb") as f:
         if size <= full_limit:
             for chunk in iter(lambda: f.read(1 << 20), b""):

@@ -29,6 +29,15 @@ class MethodOptions(BaseModel):
     verifier: bool = True
     verify: str = "first"
     abstract_with: str = "text"
+    # Sampling caps (None = the method's default; see methods.base.MethodConfig).
+    planner_max_tokens: int | None = None
+    judge_max_tokens: int | None = None
+    reflector_max_tokens: int | None = None
+    distiller_max_tokens: int | None = None
+
+    def method_config_fields(self) -> dict[str, Any]:
+        """The options as MethodConfig keyword arguments (unset caps left to the method's defaults)."""
+        return {k: v for k, v in self.model_dump().items() if v is not None}
 
     @field_validator("verify")
     @classmethod

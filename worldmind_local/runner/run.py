@@ -159,14 +159,7 @@ async def run_experiment(
 
         adapter = BENCHMARKS.get(spec.benchmark)
         opts = spec.options
-        method_config = MethodConfig(
-            top_k=opts.top_k if opts.top_k is not None else adapter.default_top_k,
-            goal_experience=opts.goal_experience,
-            process_experience=opts.process_experience,
-            verifier=opts.verifier,
-            verify=opts.verify,  # type: ignore[arg-type]
-            abstract_with=opts.abstract_with,  # type: ignore[arg-type]
-        )
+        method_config = MethodConfig(**{"top_k": adapter.default_top_k, **opts.method_config_fields()})
         def make_memory(_spec: StreamSpec = spec) -> Any:
             if _spec.memory_from:
                 if not Path(_spec.memory_from).exists():
