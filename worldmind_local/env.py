@@ -82,6 +82,10 @@ class Observation:
         state: dict[str, Any] | Callable[[], dict[str, Any]] | None = None,
         image: Any | None = None,
     ) -> None:
+        self._text: str | None
+        self._text_fn: Callable[[], str] | None
+        self._state: dict[str, Any] | None
+        self._state_fn: Callable[[], dict[str, Any]] | None
         if callable(text):
             self._text, self._text_fn = None, text
         else:
