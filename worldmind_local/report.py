@@ -33,10 +33,10 @@ def format_results(results: dict[str, Any]) -> str:
                 + [_cell(r["subsets"].get(s, {}).get("SR")) for s in subsets] + [_cell(r["avg"]["SR"])]
                 + [_cell(r["subsets"].get(s, {}).get("GC")) for s in subsets] + [_cell(r["avg"]["GC"]), str(n)]
             )
-        widths = [max(len(x) for x in col) for col in zip(head, *body)]
+        widths = [max(len(x) for x in col) for col in zip(head, *body, strict=False)]
         lines.append(f"== {bench} ==")
-        lines.append("  ".join(h.ljust(w) for h, w in zip(head, widths)))
-        lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths)) for row in body]
+        lines.append("  ".join(h.ljust(w) for h, w in zip(head, widths, strict=False)))
+        lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=False)) for row in body]
     failed = [s for s in results.get("streams", []) if s.get("status") != "finished"]
     if failed:
         lines.append("failed streams:")

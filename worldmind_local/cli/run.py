@@ -62,7 +62,13 @@ def _int_list(value: str, flag: str) -> list[int]:
 
 def build_config(args: argparse.Namespace) -> tuple[Any, str]:
     from worldmind_local.data import adapter
-    from worldmind_local.runner.config import MethodOptions, RunConfig, expand_streams, load_plan_file, split_list
+    from worldmind_local.runner.config import (
+        MethodOptions,
+        RunConfig,
+        expand_streams,
+        load_plan_file,
+        split_list,
+    )
 
     run_fields: dict[str, Any] = {
         "suite": args.suite, "data_dir": args.data_dir, "suite_seed": args.suite_seed,

@@ -81,7 +81,7 @@ def test_stream_alone_equals_stream_among_eight(tmp_path: Path, embedder):
 def test_wave_is_deterministic(tmp_path: Path, embedder):
     s = _spec("base")
     a = _run([s], tmp_path / "a", embedder, wave=3)
-    b = _run([s], tmp_path / "b", embedder, wave=3)
+    _run([s], tmp_path / "b", embedder, wave=3)
     assert not a.failed
     assert _episodes(tmp_path / "a", s.stream_id) == _episodes(tmp_path / "b", s.stream_id)
 
