@@ -1,0 +1,43 @@
+"""The WorldMind agent: planner output parsing, prompts, the roles around the planner (StateAbstractor,
+Judge, Reflector, GoalDistiller) and the episode loop that ties them together."""
+
+from worldmind_local.agent.abstractor import AbstractState, StateAbstractor
+from worldmind_local.agent.calls import ModelCalls, derive_seed
+from worldmind_local.agent.distiller import GoalDistiller, annotate_trajectory
+from worldmind_local.agent.judge import Judge, Verdict, parse_verdict
+from worldmind_local.agent.loop import EpisodeLoop
+from worldmind_local.agent.plan import (
+    SKIP_STRING,
+    Plan,
+    PlannedAction,
+    PlanParseError,
+    parse_plan,
+    planner_schema,
+)
+from worldmind_local.agent.prompting import load_template, planner_messages, render
+from worldmind_local.agent.reflector import Reflection, Reflector, parse_rules
+
+__all__ = [
+    "SKIP_STRING",
+    "AbstractState",
+    "EpisodeLoop",
+    "GoalDistiller",
+    "Judge",
+    "ModelCalls",
+    "Plan",
+    "PlanParseError",
+    "PlannedAction",
+    "Reflection",
+    "Reflector",
+    "StateAbstractor",
+    "Verdict",
+    "annotate_trajectory",
+    "derive_seed",
+    "load_template",
+    "parse_plan",
+    "parse_rules",
+    "parse_verdict",
+    "planner_messages",
+    "planner_schema",
+    "render",
+]

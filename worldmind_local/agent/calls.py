@@ -1,0 +1,103 @@
+"""Model calls of one episode: which backend plays a role, reproducible seeds, and token accounting.
+
+Every call's `Sampling.seed` is derived from (run seed, task index, call key), where the call key names
+the call's place in the episode ("planner:3", "judge:step7", ...). Keys, not a running counter: the
+judge and reflector calls of one plan run concurrently, and a counter would then depend on which
+answer came back first. With the same seed, task and model answers, every request is byte-identical,
+so a response cache or the replay backend reproduces a run exactly.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from models.base import ChatBackend, ChatRequest, ChatResult, Role, Sampling
+from worldmind_local.records import EpisodeRecord
+
+__all__ = ["derive_seed", "ROLE_FALLBACK", "backend_for", "has_vision", "ModelCalls"]
+
+# A role without its own backend borrows one: the paper's M plays planner and distiller, the judge
+# model validates, reflects and summarises.
+ROLE_FALLBACK: dict[str, tuple[str, ...]] = {
+    "planner": ("planner",),
+    "judge": ("judge", "planner"),
+    "reflector": ("reflector", "judge", "planner"),
+    "distiller": ("distiller", "planner"),
+    "summarizer": ("summarizer", "judge", "planner"),
+}
+
+
+def derive_seed(seed: int, task_index: int, call_key: str) -> int:
+    """A 31-bit seed, stable across processes and Python versions (no `hash()`)."""
+    digest = hashlib.sha256(f"{seed}:{task_index}:{call_key}".encode()).digest()
+    return int.from_bytes(digest[:4], "big") & 0x7FFFFFFF
+
+
+def backend_for(models: Mapping[str, ChatBackend], role: str) -> ChatBackend:
+    for candidate in ROLE_FALLBACK.get(role, (role,)):
+        if candidate in models:
+            return models[candidate]
+    raise KeyError(f"no backend for role {role!r} (given: {', '.join(sorted(models)) or 'none'})")
+
+
+def has_vision(backend: Any) -> bool | None:
+    """Whether a backend serves a vision-language model, from its spec; None when nothing says.
+    Wrappers (cache, limiter) are looked through via `.inner`."""
+    seen = 0
+    while backend is not None and seen < 8:
+        spec = getattr(backend, "spec", None)
+        if spec is not None and getattr(spec, "vision", None) is not None:
+            return bool(spec.vision)
+        if isinstance(getattr(backend, "vision", None), bool):
+            return bool(backend.vision)
+        backend = getattr(backend, "inner", None)
+        seen += 1
+    return None
+
+
+class ModelCalls:
+    """Sends one request per call to the role's backend and books tokens and latency on the record."""
+
+    def __init__(
+        self,
+        models: Mapping[str, ChatBackend],
+        record: EpisodeRecord,
+        *,
+        seed: int,
+        task_index: int,
+        temperature: float = 0.0,
+    ) -> None:
+        self.models = models
+        self.record = record
+        self.seed = seed
+        self.task_index = task_index
+        self.temperature = temperature
+
+    def backend(self, role: str) -> ChatBackend:
+        return backend_for(self.models, role)
+
+    def request(
+        self,
+        role: Role,
+        messages: Sequence[dict[str, Any]],
+        *,
+        call_key: str,
+        max_tokens: int,
+        json_schema: dict[str, Any] | None = None,
+    ) -> ChatRequest:
+        sampling = Sampling(
+            temperature=self.temperature,
+            max_tokens=max_tokens,
+            seed=derive_seed(self.seed, self.task_index, call_key),
+        )
+        return ChatRequest(messages=list(messages), sampling=sampling, json_schema=json_schema, role=role)
+
+    async def ask(self, request: ChatRequest) -> ChatResult:
+        results = await self.backend(request.role).complete([request])
+        if len(results) != 1:
+            raise RuntimeError(f"{request.role} backend returned {len(results)} results for 1 request")
+        result = results[0]
+        self.record.add_tokens(request.role, result.prompt_tokens, result.completion_tokens, result.latency_s)
+        return result
