@@ -64,4 +64,10 @@ BACKENDS.register("replay", "models.replay_backend:ReplayBackend")
 BACKENDS.register("random", "models.random_backend:RandomBackend")
 
 METHODS = Registry("method")
-METHODS.register("worldmind", "worldmind_local.methods.worldmind:WorldMindMethod")
+METHODS.register("worldmind", "worldmind_local.methods.worldmind:WorldMind")
+# The paper's ablations as method names (the same switches also exist as `worldmind run` flags).
+METHODS.register("worldmind_no_goal", "worldmind_local.methods.worldmind:WorldMindNoGoal")
+METHODS.register("worldmind_no_process", "worldmind_local.methods.worldmind:WorldMindNoProcess")
+METHODS.register("worldmind_no_verifier", "worldmind_local.methods.worldmind:WorldMindNoVerifier")
+METHODS.register("worldmind_baseline", "worldmind_local.methods.worldmind:WorldMindBaseline")
+METHODS.register("worldmind_verify_every", "worldmind_local.methods.worldmind:WorldMindVerifyEvery")
