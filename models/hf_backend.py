@@ -1,0 +1,322 @@
+"""`hf`: transformers on CPU or GPU, with real batching and JSON-schema-constrained decoding.
+
+Concurrent `complete` calls (many streams of a run) are gathered by a micro-batcher: the first pending
+request opens a short gather window (`gather_window_s`), then up to `max_batch_size` requests go
+through ONE left-padded `generate` call in a worker thread, so the event loop keeps serving. Requests
+that arrive while a batch runs form the next one. Per-row schemas, sampling, seeds and max_tokens are
+handled by `models.constrained.RowsProcessor`, so one batch may mix planner and judge calls.
+
+Options (spec `options:` or keyword arguments): `device` ("cuda" if available, else "cpu"), `dtype`
+(default: the spec's dtype on GPU, float32 on CPU, where torch's bf16 generation is many times
+slower), `max_batch_size` (16), `gather_window_s` (0.02), `threads` (torch CPU threads).
+Vision specs (Qwen-VL family) take `{"type": "image", "image": PIL.Image}` content parts.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import gc
+import threading
+import time
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any
+
+from models.base import BackendError, ChatRequest, ChatResult, ContextLengthError, Sampling
+from models.specs import ModelSpec, set_offline_env
+
+__all__ = ["HFBackend"]
+
+_KNOWN_OPTIONS = {"device", "dtype", "max_batch_size", "gather_window_s", "threads", "model_path"}
+
+
+@dataclass
+class _LoopQueue:
+    """Requests waiting on one event loop, and how many more are being rendered right now."""
+
+    pending: list[_Row] = field(default_factory=list)
+    preparing: int = 0
+    arrived: asyncio.Event = field(default_factory=asyncio.Event)
+    drainer: asyncio.Task[None] | None = None
+
+
+@dataclass
+class _Row:
+    """One request, rendered and tokenized, waiting for its batch."""
+
+    request: ChatRequest
+    text: str
+    prompt_tokens: int
+    images: list[Any]
+    start: float
+    future: asyncio.Future[ChatResult] = field(repr=False)
+
+
+def _as_image(image: Any) -> Any:
+    """A PIL image as is; a path string is opened (the request contract allows PIL images only, but a
+    path is what a user typing a request by hand would give)."""
+    if isinstance(image, str):
+        from PIL import Image
+
+        try:
+            return Image.open(image)
+        except OSError as exc:
+            raise BackendError(f"hf backend: cannot open image {image!r}: {exc}") from exc
+    return image
+
+
+class HFBackend:
+    """A transformers model behind the `ChatBackend` protocol (see module docstring)."""
+
+    name = "hf"
+
+    def __init__(self, spec: ModelSpec, **options: Any) -> None:
+        set_offline_env()
+        unknown = set(options) - _KNOWN_OPTIONS
+        if unknown:
+            raise TypeError(f"hf backend: unknown options {sorted(unknown)}; known: {sorted(_KNOWN_OPTIONS)}")
+        opts = {**{k: v for k, v in spec.options.items() if k in _KNOWN_OPTIONS}, **options}
+        self.spec = spec
+        self.model_id = spec.model_id
+        self.context_length = spec.context_length
+        self.max_batch_size = int(opts.get("max_batch_size", 16))
+        self.gather_window_s = float(opts.get("gather_window_s", 0.02))
+        self.generate_calls = 0  # one per batched `generate`; tests and `models check` read these
+        self.batch_sizes: list[int] = []
+        self._queues: dict[asyncio.AbstractEventLoop, _LoopQueue] = {}
+        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hf-generate")
+        self._lock = threading.Lock()
+        start = time.perf_counter()
+        self._load(opts)
+        self.load_s = time.perf_counter() - start
+
+    # ---- loading -------------------------------------------------------------------------------
+
+    def _load(self, opts: dict[str, Any]) -> None:
+        from models.weights import materialize
+
+        folder = opts.get("model_path") or materialize(self.spec)  # missing weights fail before heavy imports
+
+        import torch
+        from transformers import AutoModelForCausalLM, AutoModelForImageTextToText, AutoTokenizer
+
+        from models.constrained import GrammarCompiler
+
+        if opts.get("threads"):
+            torch.set_num_threads(int(opts["threads"]))
+        self.device = opts.get("device") or ("cuda" if torch.cuda.is_available() else "cpu")
+        dtype_name = opts.get("dtype") or (self.spec.dtype if self.device != "cpu" else "float32")
+        dtype = getattr(torch, dtype_name)
+        self.tokenizer = AutoTokenizer.from_pretrained(folder)
+        self.tokenizer.padding_side = "left"
+        if self.tokenizer.pad_token_id is None:
+            self.tokenizer.pad_token = self.tokenizer.eos_token
+        self.image_processor = None
+        if self.spec.vision:
+            from models.tiny import image_processor_for
+
+            self.model = AutoModelForImageTextToText.from_pretrained(folder, dtype=dtype)
+            self.image_processor = image_processor_for(folder)
+        else:
+            self.model = AutoModelForCausalLM.from_pretrained(folder, dtype=dtype)
+        self.model.to(self.device).eval()
+        self.eos_ids = self._eos_ids()
+        self.grammars = GrammarCompiler(self.tokenizer, self.eos_ids)
+
+    def _eos_ids(self) -> list[int]:
+        ids: list[int] = []
+        configured = self.model.generation_config.eos_token_id
+        for value in [self.tokenizer.eos_token_id, *(configured if isinstance(configured, list) else [configured])]:
+            if value is not None and value not in ids:
+                ids.append(int(value))
+        return ids
+
+    # ---- rendering -----------------------------------------------------------------------------
+
+    def _render(self, request: ChatRequest) -> tuple[str, list[Any]]:
+        """Chat template applied; images collected in order and their placeholders expanded."""
+        images: list[Any] = []
+        messages = []
+        for message in request.messages:
+            content = message.get("content")
+            if isinstance(content, list):
+                for part in content:
+                    if part.get("type") == "image":
+                        images.append(_as_image(part["image"]))
+                if not self.spec.vision:
+                    if images:
+                        raise BackendError(f"hf backend: {self.spec.address} is not a vision model; got an image")
+                    content = "".join(p.get("text", "") for p in content)
+                else:
+                    content = [{"type": p["type"], **({"text": p["text"]} if p.get("type") == "text" else {})}
+                               for p in content]
+            messages.append({**message, "content": content if content is not None else ""})
+        kwargs = {**self.spec.chat_template_kwargs, **(request.chat_template_kwargs or {})}
+        text = self.tokenizer.apply_chat_template(messages, tokenize=False, add_generation_prompt=True, **kwargs)
+        if images:
+            text = self._expand_image_pads(text, images)
+        return text, images
+
+    def _expand_image_pads(self, text: str, images: list[Any]) -> str:
+        """One `<|image_pad|>` per image becomes grid_t*grid_h*grid_w/merge^2 of them (Qwen-VL)."""
+        assert self.image_processor is not None
+        pad = "<|image_pad|>"
+        if text.count(pad) != len(images):
+            raise BackendError(f"hf backend: the chat template made {text.count(pad)} image slots for {len(images)} images")
+        grids = self.image_processor([img.convert("RGB") for img in images], return_tensors="pt")["image_grid_thw"]
+        merge = int(self.image_processor.merge_size) ** 2
+        pieces = text.split(pad)
+        out = pieces[0]
+        for grid, rest in zip(grids.tolist(), pieces[1:], strict=True):
+            out += "<|placeholder|>" * (grid[0] * grid[1] * grid[2] // merge) + rest
+        return out.replace("<|placeholder|>", pad)
+
+    def _prepare(self, index: int, request: ChatRequest) -> tuple[str, int, list[Any]]:
+        text, images = self._render(request)
+        n_prompt = len(self.tokenizer(text, add_special_tokens=False)["input_ids"])
+        needed = n_prompt + request.sampling.max_tokens
+        if needed > self.context_length:
+            raise ContextLengthError(
+                f"hf backend ({self.spec.address}): request {index} needs {n_prompt} prompt + "
+                f"{request.sampling.max_tokens} max_tokens = {needed} tokens > context length {self.context_length}"
+            )
+        if request.json_schema is not None:
+            try:
+                self.grammars.matcher(request.json_schema)
+            except ValueError as exc:
+                raise BackendError(f"hf backend ({self.spec.address}): request {index}: {exc}") from exc
+        return text, n_prompt, images
+
+    # ---- the ChatBackend protocol --------------------------------------------------------------
+
+    async def complete(self, requests: Sequence[ChatRequest]) -> list[ChatResult]:
+        """Render and check every request first (clear errors before any work), then batch them.
+
+        Rendering runs in a thread; while any caller is still rendering, the batcher waits for it, so
+        requests sent together (e.g. by `asyncio.gather`) always share one `generate` call.
+        """
+        if not requests:
+            return []
+        start = time.perf_counter()
+        loop = asyncio.get_running_loop()
+        for dead in [other for other in self._queues if other.is_closed()]:
+            del self._queues[dead]  # left behind by an earlier asyncio.run
+        queue = self._queues.setdefault(loop, _LoopQueue())
+        queue.preparing += 1
+        try:
+            prepared = await asyncio.to_thread(lambda: [self._prepare(i, r) for i, r in enumerate(requests)])
+        finally:
+            queue.preparing -= 1
+            queue.arrived.set()
+        rows = [
+            _Row(request=r, text=t, prompt_tokens=n, images=imgs, start=start, future=loop.create_future())
+            for r, (t, n, imgs) in zip(requests, prepared, strict=True)
+        ]
+        queue.pending.extend(rows)
+        if queue.drainer is None or queue.drainer.done():
+            queue.drainer = loop.create_task(self._drain(queue))
+        return list(await asyncio.gather(*(row.future for row in rows)))
+
+    async def _gather(self, queue: _LoopQueue) -> None:
+        """The gather window, extended while callers that already started are still rendering."""
+        if len(queue.pending) < self.max_batch_size:
+            await asyncio.sleep(self.gather_window_s)
+        while queue.preparing and len(queue.pending) < self.max_batch_size:
+            queue.arrived.clear()
+            await queue.arrived.wait()
+
+    async def _drain(self, queue: _LoopQueue) -> None:
+        """Take batches off this loop's queue until it is empty; each batch is one `generate` call."""
+        loop = asyncio.get_running_loop()
+        while queue.pending:
+            await self._gather(queue)
+            batch, queue.pending[:] = queue.pending[: self.max_batch_size], queue.pending[self.max_batch_size :]
+            try:
+                outputs = await loop.run_in_executor(self._executor, self._generate, batch)
+            except Exception as exc:  # the whole batch failed: every caller hears why
+                error = exc if isinstance(exc, BackendError) else BackendError(f"hf backend: generate failed: {exc!r}")
+                for row in batch:
+                    if not row.future.done():
+                        row.future.set_exception(error)
+                continue
+            now = time.perf_counter()
+            for row, (texts, n_completion) in zip(batch, outputs, strict=True):
+                if not row.future.done():
+                    row.future.set_result(ChatResult(
+                        texts=texts, prompt_tokens=row.prompt_tokens, completion_tokens=n_completion,
+                        latency_s=now - row.start, model=self.model_id,
+                    ))
+
+    def _generate(self, batch: list[_Row]) -> list[tuple[list[str], int]]:
+        """Run ONE `generate` over every output row of the batch (n rows per request)."""
+        import torch
+        from transformers import GenerationConfig, LogitsProcessorList
+
+        from models.constrained import RowControl, RowsProcessor
+
+        texts: list[str] = []
+        images: list[Any] = []
+        controls: list[RowControl] = []
+        for row in batch:
+            s: Sampling = row.request.sampling
+            for k in range(max(1, s.n)):
+                texts.append(row.text)
+                images.extend(row.images)
+                seed = None if s.seed is None else s.seed + k
+                matcher = self.grammars.matcher(row.request.json_schema) if row.request.json_schema else None
+                controls.append(RowControl(s.max_tokens, s.temperature, s.top_p, seed, matcher))
+        inputs = self._encode(texts, images)
+        prompt_len = inputs["input_ids"].shape[1]
+        processor = RowsProcessor(controls, self.eos_ids, prompt_len, self.grammars.vocab_size)
+        config = GenerationConfig(
+            max_new_tokens=max(c.max_tokens for c in controls) + 1, do_sample=False,
+            eos_token_id=self.eos_ids, pad_token_id=self.tokenizer.pad_token_id,
+        )
+        with self._lock, torch.inference_mode():
+            self.generate_calls += 1
+            self.batch_sizes.append(len(controls))
+            out = self.model.generate(**inputs, generation_config=config,
+                                      logits_processor=LogitsProcessorList([processor]))
+        return self._decode(batch, out[:, prompt_len:].cpu(), controls)
+
+    def _encode(self, texts: list[str], images: list[Any]) -> dict[str, Any]:
+        inputs = dict(self.tokenizer(texts, return_tensors="pt", padding=True, add_special_tokens=False))
+        if images:
+            assert self.image_processor is not None
+            vision = self.image_processor([img.convert("RGB") for img in images], return_tensors="pt")
+            inputs["pixel_values"] = vision["pixel_values"].to(self.model.dtype)
+            inputs["image_grid_thw"] = vision["image_grid_thw"]
+        return {k: v.to(self.device) for k, v in inputs.items()}
+
+    def _decode(self, batch: list[_Row], generated: Any, controls: list[Any]) -> list[tuple[list[str], int]]:
+        results: list[tuple[list[str], int]] = []
+        i = 0
+        for row in batch:
+            outs, total = [], 0
+            for _ in range(max(1, row.request.sampling.n)):
+                ids = [int(t) for t in generated[i]]
+                cut = next((j for j, t in enumerate(ids) if t in self.eos_ids), len(ids))
+                ids = ids[: min(cut, controls[i].max_tokens)]
+                total += len(ids)
+                outs.append(self.tokenizer.decode(ids, skip_special_tokens=True))
+                i += 1
+            results.append((outs, total))
+        return results
+
+    async def aclose(self) -> None:
+        """Stop batching and free the model (GPU memory included)."""
+        for queue in self._queues.values():
+            if queue.drainer is not None:
+                queue.drainer.cancel()
+        self._queues.clear()
+        self._executor.shutdown(wait=True)
+        self.model = None
+        gc.collect()
+        try:
+            import torch
+
+            if torch.cuda.is_available():
+                torch.cuda.empty_cache()
+        except ImportError:
+            pass
