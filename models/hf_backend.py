@@ -7,8 +7,8 @@ that arrive while a batch runs form the next one. Per-row schemas, sampling, see
 handled by `models.constrained.RowsProcessor`, so one batch may mix planner and judge calls.
 
 Options (spec `options:` or keyword arguments): `device` ("cuda" if available, else "cpu"), `dtype`
-(default: the spec's dtype on GPU, float32 on CPU, where torch's bf16 generation is many times
-slower), `max_batch_size` (16), `gather_window_s` (0.02), `threads` (torch CPU threads).
+(default: the spec's; on this 2-core CPU bf16 measured 1.5x faster than float32 at batch 1 and 2.2x
+at batch 8 for SmolLM2, idle machine), `max_batch_size` (16), `gather_window_s` (0.02), `threads` (torch CPU threads).
 Vision specs (Qwen-VL family) take `{"type": "image", "image": PIL.Image}` content parts.
 """
 
@@ -106,7 +106,7 @@ class HFBackend:
         if opts.get("threads"):
             torch.set_num_threads(int(opts["threads"]))
         self.device = opts.get("device") or ("cuda" if torch.cuda.is_available() else "cpu")
-        dtype_name = opts.get("dtype") or (self.spec.dtype if self.device != "cpu" else "float32")
+        dtype_name = opts.get("dtype") or self.spec.dtype
         dtype = getattr(torch, dtype_name)
         self.tokenizer = AutoTokenizer.from_pretrained(folder)
         self.tokenizer.padding_side = "left"
