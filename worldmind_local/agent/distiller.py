@@ -21,7 +21,7 @@ __all__ = ["DISTILLER_SCHEMA", "Distillation", "annotate_trajectory", "parse_wor
 
 DISTILLER_SCHEMA: dict[str, Any] = {
     "type": "object",
-    "properties": {"workflow": {"type": "string"}},
+    "properties": {"workflow": {"type": "string", "maxLength": 1500}},  # = MAX_WORKFLOW_CHARS
     "required": ["workflow"],
     "additionalProperties": False,
 }

@@ -22,7 +22,7 @@ JUDGE_SCHEMA: dict[str, Any] = {
     "type": "object",
     "properties": {
         "verdict": {"type": "string", "enum": ["match", "mismatch"]},
-        "reason": {"type": "string"},
+        "reason": {"type": "string", "maxLength": 400},
     },
     "required": ["verdict", "reason"],
     "additionalProperties": False,

@@ -74,15 +74,24 @@ class Plan:
         return not self.actions
 
 
+# Length bounds of the free-text fields. A constrained decoder then always closes the object within
+# a known token budget: a weak model that repeats itself cannot run into max_tokens and turn a plan
+# into malformed JSON (which EB counts as an invalid action).
+MAX_LANGUAGE_PLAN_CHARS = 800
+MAX_ACTION_NAME_CHARS = 80
+MAX_PREDICTED_STATE_CHARS = 240
+
+
 def planner_schema(n_actions: int, max_plan_actions: int) -> dict[str, Any]:
     """JSON schema for structured decoding. Ids are bounded by the episode's action space, so a
-    backend that enforces the schema can never produce an out-of-range id."""
+    backend that enforces the schema can never produce an out-of-range id; strings and the plan
+    length are bounded so the answer always fits its token budget."""
     item = {
         "type": "object",
         "properties": {
             "action_id": {"type": "integer", "minimum": 0, "maximum": max(n_actions - 1, 0)},
-            "action_name": {"type": "string"},
-            "predicted_state": {"type": "string"},
+            "action_name": {"type": "string", "maxLength": MAX_ACTION_NAME_CHARS},
+            "predicted_state": {"type": "string", "maxLength": MAX_PREDICTED_STATE_CHARS},
         },
         "required": ["action_id", "action_name", "predicted_state"],
         "additionalProperties": False,
@@ -90,7 +99,7 @@ def planner_schema(n_actions: int, max_plan_actions: int) -> dict[str, Any]:
     return {
         "type": "object",
         "properties": {
-            "language_plan": {"type": "string"},
+            "language_plan": {"type": "string", "maxLength": MAX_LANGUAGE_PLAN_CHARS},
             "executable_plan": {"type": "array", "items": item, "maxItems": max_plan_actions},
         },
         "required": ["language_plan", "executable_plan"],

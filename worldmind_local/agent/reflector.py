@@ -19,14 +19,14 @@ from worldmind_local.agent.prompting import load_template, render
 
 __all__ = ["reflector_schema", "Reflection", "parse_rules", "Reflector", "MAX_RULE_CHARS"]
 
-MAX_RULE_CHARS = 600
+MAX_RULE_CHARS = 300
 _RULE_KEYS = ("rules", "experience_entry", "experience_entries")
 
 
 def reflector_schema(max_rules: int) -> dict[str, Any]:
     return {
         "type": "object",
-        "properties": {"rules": {"type": "array", "items": {"type": "string"}, "minItems": 1, "maxItems": max_rules}},
+        "properties": {"rules": {"type": "array", "items": {"type": "string", "maxLength": MAX_RULE_CHARS}, "minItems": 1, "maxItems": max_rules}},
         "required": ["rules"],
         "additionalProperties": False,
     }

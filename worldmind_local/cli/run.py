@@ -37,7 +37,8 @@ def register(sub: Any) -> None:
     p.add_argument("--suite", default=None, choices=["embodiedbench", "generated"],
                    help="task suite (default: EmbodiedBench data if present, else generated)")
     p.add_argument("--suite-seed", type=int, default=0, help="seed of the generated suite")
-    p.add_argument("--suite-size", type=int, default=50, help="episodes per subset of the generated suite")
+    p.add_argument("--suite-size", "--per-subset", dest="suite_size", type=int, default=50,
+                   help="episodes per subset of the generated suite (default 50)")
     p.add_argument("--env", default="twin", choices=["twin", "embodiedbench"], help="simulator backend")
     p.add_argument("--no-goal-experience", action="store_true", help="ablation: no Goal Experience")
     p.add_argument("--no-process-experience", action="store_true", help="ablation: no Process Experience")
@@ -45,6 +46,10 @@ def register(sub: Any) -> None:
     p.add_argument("--top-k", type=int, default=None, help="entries retrieved per partition (default per benchmark)")
     p.add_argument("--verify", default="first", choices=["first", "every"],
                    help="verify the first action of each plan (paper) or every executed action")
+    p.add_argument("--max-plan-actions", type=int, default=None, metavar="N",
+                   help="cap on actions per plan (default 20, as in the paper's prompt)")
+    p.add_argument("--planner-max-tokens", type=int, default=None, metavar="N",
+                   help="planner token budget (default 2048)")
     p.add_argument("--wave", type=int, default=1, metavar="N",
                    help="N episodes of a stream at once on a memory snapshot (deviation from the paper)")
     p.add_argument("--max-concurrency", type=int, default=None, metavar="N", help="bound in-flight model requests")
@@ -88,7 +93,8 @@ def build_config(args: argparse.Namespace) -> tuple[Any, str]:
         options = MethodOptions(
             top_k=args.top_k, goal_experience=not args.no_goal_experience,
             process_experience=not args.no_process_experience, verifier=not args.no_verifier,
-            verify=args.verify,
+            verify=args.verify, max_plan_actions=args.max_plan_actions,
+            planner_max_tokens=args.planner_max_tokens,
         )
         methods = split_list(args.method)
         streams = expand_streams(

@@ -41,7 +41,7 @@ class MethodConfig:
     max_rules: int = 3
     planner_images: bool | None = None
     temperature: float = 0.0
-    planner_max_tokens: int = 1024
+    planner_max_tokens: int = 2048  # fits the bounded schema: 20 actions of bounded strings
     judge_max_tokens: int = 256
     reflector_max_tokens: int = 512
     distiller_max_tokens: int = 512

@@ -30,6 +30,7 @@ class MethodOptions(BaseModel):
     verify: str = "first"
     abstract_with: str = "text"
     # Sampling caps (None = the method's default; see methods.base.MethodConfig).
+    max_plan_actions: int | None = None
     planner_max_tokens: int | None = None
     judge_max_tokens: int | None = None
     reflector_max_tokens: int | None = None
