@@ -1,6 +1,6 @@
 """Multi-stream runner vs the reference evaluators' sequential loop, on one backend and model.
 
-Runs the same streams (S streams x E episodes of the generated EB-ALFRED suite) twice in one invocation:
+Runs the same streams (S streams x E episodes of a generated suite, EB-ALFRED by default) twice in one invocation:
 
   (a) sequential: one stream after another, one model call at a time (what EmbodiedBench's and
       WorldMind's evaluators do);
@@ -70,14 +70,19 @@ class MeteredBackend:
         await self.inner.aclose()
 
 
+BENCHMARK = "eb_alfred"
+MAX_PLAN_ACTIONS: int | None = None
+
+
 def _streams(n_streams: int, episodes: int, model: str, max_tokens: int) -> list[Any]:
+    from worldmind_local.registry import BENCHMARKS
     from worldmind_local.runner import MethodOptions, StreamSpec
 
-    subsets = ("base", "common_sense", "complex_instruction", "visual_appearance", "spatial", "long_horizon")
-    opts = MethodOptions(planner_max_tokens=max_tokens, judge_max_tokens=min(max_tokens, 128),
+    subsets = BENCHMARKS.get(BENCHMARK).subsets
+    opts = MethodOptions(planner_max_tokens=max_tokens, max_plan_actions=MAX_PLAN_ACTIONS, judge_max_tokens=min(max_tokens, 128),
                          reflector_max_tokens=min(max_tokens, 160), distiller_max_tokens=min(max_tokens, 160))
     return [
-        StreamSpec(benchmark="eb_alfred", subset=subsets[i % len(subsets)], planner=model, seed=i // len(subsets),
+        StreamSpec(benchmark=BENCHMARK, subset=subsets[i % len(subsets)], planner=model, seed=i // len(subsets),
                    limit=episodes, options=opts)
         for i in range(n_streams)
     ]
@@ -175,7 +180,11 @@ def main() -> None:
     p.add_argument("--streams", type=int, default=16)
     p.add_argument("--episodes", type=int, default=4, help="episodes per stream")
     p.add_argument("--max-tokens", type=int, default=256, help="planner max tokens (others are capped lower)")
+    p.add_argument("--benchmark", default="eb_alfred", help="eb_alfred | eb_habitat | eb_navigation")
+    p.add_argument("--max-plan-actions", type=int, default=None, help="cap on actions per plan")
     args = p.parse_args()
+    global BENCHMARK, MAX_PLAN_ACTIONS
+    BENCHMARK, MAX_PLAN_ACTIONS = args.benchmark, args.max_plan_actions
     res = asyncio.run(main_async(args))
     print(f"episodes/hour sequential {res['episodes_per_hour_sequential']}, "
           f"multi-stream {res['episodes_per_hour_streams']} (ratio {res['ratio']}x); "
