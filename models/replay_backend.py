@@ -14,6 +14,7 @@ Ways to get one:
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -21,7 +22,10 @@ from typing import Any
 
 from models.base import BackendError, ChatRequest, ChatResult, ModelNotFoundError, request_key
 from models.cache import ResponseCache, resolve_cache_path
+
 from models.specs import ModelSpec
+
+REPLAY_CACHE_ENV = "WORLDMIND_REPLAY_CACHE"  # where `worldmind run --planner replay:...` finds the cache
 
 __all__ = ["ReplayBackend"]
 
@@ -39,9 +43,13 @@ class ReplayBackend:
         cache: str | Path | None = None,
         model_id: str | None = None,
     ) -> None:
-        path = cache_path or cache or (spec.options.get("cache") if spec else None)
+        path = (cache_path or cache or (spec.options.get("cache") if spec else None)
+                or os.environ.get(REPLAY_CACHE_ENV))
         if not path:
-            raise ValueError("replay backend: give the recorded cache (cache_path=runs/<id> or .../cache.sqlite)")
+            raise ValueError(
+                "replay backend: give the recorded cache (cache_path=runs/<id> or .../cache.sqlite, or set "
+                f"{REPLAY_CACHE_ENV}=runs/<id> for `worldmind run --planner replay:<spec>`)"
+            )
         self.path = resolve_cache_path(path)
         if not self.path.is_file():
             raise ModelNotFoundError(f"replay backend: response cache {self.path} does not exist")
