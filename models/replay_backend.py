@@ -22,7 +22,6 @@ from typing import Any
 
 from models.base import BackendError, ChatRequest, ChatResult, ModelNotFoundError, request_key
 from models.cache import ResponseCache, resolve_cache_path
-
 from models.specs import ModelSpec
 
 REPLAY_CACHE_ENV = "WORLDMIND_REPLAY_CACHE"  # where `worldmind run --planner replay:...` finds the cache
