@@ -20,7 +20,7 @@ from typing import Any
 
 from worldmind_local.env import Observation, StepResult, Task, UnknownActionError
 
-from .actions import embedded_skills
+from .actions import embedded_skills, lookup_action
 from .twin import MAX_INVALID, MAX_STEPS
 
 __all__ = ["EmbodiedBenchHabitatEnv", "INSTALL_HINT", "default_state_text"]
@@ -153,11 +153,7 @@ class EmbodiedBenchHabitatEnv:
         return Observation(default_state_text(info, holding), image=image, state={"holding": holding})
 
     def action_id(self, name: str) -> int:
-        try:
-            return self._ids[name]
-        except KeyError:
-            where = f" (task {self._task.id})" if self._task is not None else ""
-            raise UnknownActionError(f"unknown EB-Habitat action {name!r}{where}") from None
+        return lookup_action(self._ids, name, self._task)
 
     def close(self) -> None:
         if self._env is not None:

@@ -30,7 +30,7 @@ from typing import Any
 from worldmind_local.env import Observation, StepResult, Task, UnknownActionError
 
 from .abstract import render_state, render_text
-from .actions import Skill, skills_for
+from .actions import Skill, lookup_action, skills_for
 from .predicates import compile_node, ground_expr, ground_pred
 from .scene import FRIDGE_MARKER, MARKER_RECEPTACLE, STATIC_ENTITIES, episode_reach
 from .world import HOME_IDX, NOWHERE, STATIC_INDEX, Entities, World, reach_index
@@ -244,11 +244,7 @@ class HabitatTwin:
         return self._skills
 
     def action_id(self, name: str) -> int:
-        try:
-            return self._ids[name]
-        except KeyError:
-            where = f" (task {self._task.id})" if self._task is not None else ""
-            raise UnknownActionError(f"unknown EB-Habitat action {name!r}{where}") from None
+        return lookup_action(self._ids, name, self._task)
 
     def close(self) -> None:
         self._done = True
