@@ -135,3 +135,57 @@ def test_tiny_qwen3_vl_takes_an_image() -> None:
     finally:
         hook.remove()
         _run(backend.aclose())
+
+
+def _mixed_system_requests() -> list[ChatRequest]:
+    """Two prompts under one long system message, one under another, one without any, one whose system
+    message is too short to cache; greedy, so outputs can be compared token for token."""
+    planner = "You plan household tasks one step at a time and answer briefly. " * 12
+    judge = "You compare a predicted state with what was observed and say whether they match. " * 8
+    greedy = {"max_tokens": 20}
+    return [
+        ChatRequest(messages=[{"role": "system", "content": planner},
+                              {"role": "user", "content": "Find an apple in the kitchen."}], sampling=Sampling(**greedy)),
+        ChatRequest(messages=[{"role": "system", "content": planner},
+                              {"role": "user", "content": "Turn left twice, then walk forward."}],
+                    sampling=Sampling(**greedy)),
+        ChatRequest(messages=[{"role": "system", "content": judge},
+                              {"role": "user", "content": "Predicted: door open. Observed: door closed."}],
+                    sampling=Sampling(**greedy)),
+        _ask("Say hello.", **greedy),
+        ChatRequest(messages=[{"role": "system", "content": "Be short."},
+                              {"role": "user", "content": "Count to five."}], sampling=Sampling(**greedy)),
+    ]
+
+
+def test_system_prefix_cache_gives_the_same_tokens_and_skips_prefill() -> None:
+    """float32 so the comparison is exact: the spliced-prefix batch must decode exactly what the plain
+    left-padded batch decodes, alone and batched, on first use (miss) and on reuse (hit)."""
+    requests = _mixed_system_requests()
+
+    async def outputs(prefix_cache: bool) -> tuple[list[str], Any]:
+        backend = make_backend(load_spec("hf:smollm2-135m-instruct"), dtype="float32", prefix_cache=prefix_cache)
+        try:
+            batched = [r.texts[0] for r in await backend.complete(requests)]
+            again = [r.texts[0] for r in await backend.complete(requests)]
+            alone = [(await backend.complete([r]))[0].texts[0] for r in requests]
+            return batched + again + alone, (backend.prefix_hits, backend.prefix_misses, backend.prefilled_tokens)
+        finally:
+            await backend.aclose()
+
+    plain, (hits0, misses0, prefilled_plain) = _run(outputs(False))
+    cached, (hits, misses, prefilled_cached) = _run(outputs(True))
+    assert cached == plain
+    assert (hits0, misses0) == (0, 0)
+    assert misses == 2  # the planner and judge system prompts, each computed once
+    assert hits == 7  # 3 rows in the second batch + 3 alone + the second planner row of the first batch
+    assert prefilled_cached < prefilled_plain / 2
+
+
+def test_prefix_cache_is_off_for_vision_specs_and_when_asked() -> None:
+    for address, options in [("hf:smollm2-135m-instruct", {"prefix_cache": False}), ("hf:tiny-qwen3-vl", {})]:
+        backend = make_backend(load_spec(address), **options)
+        try:
+            assert not backend.prefix_cache
+        finally:
+            _run(backend.aclose())
