@@ -189,3 +189,30 @@ def test_prefix_cache_is_off_for_vision_specs_and_when_asked() -> None:
             assert not backend.prefix_cache
         finally:
             _run(backend.aclose())
+
+
+def test_fast_decode_attention_gives_the_same_tokens() -> None:
+    """float32: the grouped-matmul decode step must pick exactly the tokens transformers' sdpa picks,
+    for left-padded batches with and without spliced prefixes and for single rows."""
+    requests = _mixed_system_requests()
+
+    async def outputs(fast: bool) -> list[str]:
+        backend = make_backend(load_spec("hf:smollm2-135m-instruct"), dtype="float32", fast_decode=fast)
+        try:
+            assert backend.fast_decode is fast
+            assert (backend.model.config._attn_implementation == "sdpa") is not fast
+            batched = [r.texts[0] for r in await backend.complete(requests)]
+            alone = [(await backend.complete([r]))[0].texts[0] for r in requests[:2]]
+            return batched + alone
+        finally:
+            await backend.aclose()
+
+    assert _run(outputs(True)) == _run(outputs(False))
+
+
+def test_fast_decode_is_off_for_vision_specs() -> None:
+    backend = make_backend(load_spec("hf:tiny-qwen3-vl"))
+    try:
+        assert not backend.fast_decode
+    finally:
+        _run(backend.aclose())
