@@ -147,10 +147,9 @@ class HFBackend:
         else:
             self.model = AutoModelForCausalLM.from_pretrained(folder, dtype=dtype)
         self.model.to(self.device).eval()
-        if self.prefix_cache and not self._plain_cache_layers():
-            self.prefix_cache = False
-        self.fast_decode = (bool(opts.get("fast_decode", self.device == "cpu")) and not self.spec.vision
-                            and self._plain_cache_layers())
+        plain = not self.spec.vision and self._plain_cache_layers()
+        self.prefix_cache = self.prefix_cache and plain
+        self.fast_decode = bool(opts.get("fast_decode", self.device == "cpu")) and plain
         if self.fast_decode:
             from models import cpu_decode
 
