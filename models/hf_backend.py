@@ -101,7 +101,7 @@ class HFBackend:
         self.gather_window_s = float(opts.get("gather_window_s", 0.02))
         self.generate_calls = 0  # one per batched `generate`; tests and `models check` read these
         self.batch_sizes: list[int] = []
-        self.prefix_cache = bool(opts.get("prefix_cache", True)) and not spec.vision
+        self.prefix_cache = bool(opts.get("prefix_cache", True))
         self.prefix_cache_entries = int(opts.get("prefix_cache_entries", 16))
         self.prefix_min_tokens = int(opts.get("prefix_min_tokens", 32))
         self.prefix_hits = 0  # rows whose system prefix came from the cache
