@@ -10,6 +10,8 @@ greedily and does everything per row in this logits processor:
   applied), and the processor leaves only that token open, so greedy picks it. A row's output then
   depends only on its own request and seed, not on what else shares the batch;
 - max_tokens: a row that reached its own limit may only emit end-of-sequence.
+
+`consume` and `control` also serve `models.hf_continuous`, which decodes without `generate`.
 """
 
 from __future__ import annotations
@@ -93,13 +95,14 @@ class RowsProcessor:
             if row.done:
                 continue
             if step > 0:
-                self._consume(row, int(input_ids[r, -1]))
+                self.consume(row, int(input_ids[r, -1]))
                 if row.done:
                     continue
-            self._control(row, scores[r])
+            self.control(row, scores[r])
         return scores
 
-    def _consume(self, row: RowControl, token: int) -> None:
+    def consume(self, row: RowControl, token: int) -> None:
+        """Record the token a row just emitted (end-of-sequence marks the row done)."""
         if token in self.eos_ids:
             row.done = True
             return
@@ -107,7 +110,8 @@ class RowsProcessor:
         if row.matcher is not None and not row.matcher.consume_token(token):
             raise BackendError(f"grammar rejected token {token}: {row.matcher.get_error()}")
 
-    def _control(self, row: RowControl, logits: torch.Tensor) -> None:
+    def control(self, row: RowControl, logits: torch.Tensor) -> None:
+        """Mask (schema, limit) or sample this row's next-token logits in place."""
         if row.generated >= row.max_tokens:
             self._only(logits, self.eos_ids[0])
             return

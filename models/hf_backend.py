@@ -1,10 +1,21 @@
 """`hf`: transformers on CPU or GPU, with real batching and JSON-schema-constrained decoding.
 
 Concurrent `complete` calls (many streams of a run) are gathered by a micro-batcher: the first pending
-request opens a short gather window (`gather_window_s`), then up to `max_batch_size` requests go
-through ONE left-padded `generate` call in a worker thread, so the event loop keeps serving. Requests
-that arrive while a batch runs form the next one. Per-row schemas, sampling, seeds and max_tokens are
-handled by `models.constrained.RowsProcessor`, so one batch may mix planner and judge calls.
+request opens a short gather window (`gather_window_s`); rendering runs in a thread, and requests sent
+together (e.g. by `asyncio.gather`) are always admitted together. A worker thread then serves them
+one of two ways:
+
+- continuous batching (default for text models with plain full-attention caches): one running
+  batch, `models.hf_continuous.RunningBatch`. Before every decode step, pending requests join it (up
+  to `max_batch_size` rows, one batched prefill); after every step, each finished row is answered at
+  once and cut out of the cache. No stream waits for another's longer answer, and a request that
+  arrives mid-generation starts at the next step.
+- static batches (vision specs, caches that are not plain, or `continuous: false`): up to
+  `max_batch_size` requests go through ONE left-padded `generate` call; requests that arrive while it
+  runs form the next one.
+
+Per-row schemas, sampling, seeds and max_tokens are handled by `models.constrained.RowsProcessor`
+either way, so one batch may mix planner and judge calls.
 
 System-prompt prefix cache: every agent role sends the same system message call after call (the
 planner's holds the whole action list), so the backend keeps the key/value tensors of recent system
@@ -17,7 +28,8 @@ layers; `prefix_cache: false` turns it off.
 Options (spec `options:` or keyword arguments): `device` ("cuda" if available, else "cpu"), `dtype`
 (default: the spec's; on this 2-core CPU bf16 measured 1.5x faster than float32 at batch 1 and 2.2x
 at batch 8 for SmolLM2, idle machine), `max_batch_size` (16), `gather_window_s` (0.02), `threads` (torch CPU threads),
-`prefix_cache` (true), `prefix_cache_entries` (16), `prefix_min_tokens` (32: shorter system prompts are not cached),
+`continuous` (true where possible, see above), `prefix_cache` (true), `prefix_cache_entries` (16),
+`prefix_min_tokens` (32: shorter system prompts are not cached),
 `fast_decode` (true on CPU for text specs with plain cache layers: `models.cpu_decode`, sdpa for
 prefill and a grouped matmul per decode step, which cut a decode step of 8 rows x 1.1k cached tokens of
 SmolLM2 bf16 from 208 ms to 73 ms here; torch's CPU flash kernel is slow with one query per row).
@@ -43,14 +55,15 @@ from models.specs import ModelSpec, set_offline_env
 __all__ = ["HFBackend"]
 
 _KNOWN_OPTIONS = {"device", "dtype", "max_batch_size", "gather_window_s", "threads", "model_path",
-                  "prefix_cache", "prefix_cache_entries", "prefix_min_tokens", "fast_decode"}
+                  "prefix_cache", "prefix_cache_entries", "prefix_min_tokens", "fast_decode", "continuous"}
 
 
 @dataclass
 class _LoopQueue:
     """Requests waiting on one event loop, and how many more are being rendered right now."""
 
-    pending: list[_Row] = field(default_factory=list)
+    pending: list[_Row] = field(default_factory=list)  # touched by the worker too: under `lock`
+    lock: threading.Lock = field(default_factory=threading.Lock)
     preparing: int = 0
     arrived: asyncio.Event = field(default_factory=asyncio.Event)
     drainer: asyncio.Task[None] | None = None
@@ -68,6 +81,12 @@ class _Row:
     prefix_len: int  # leading tokens of `ids` that are the system message (0: nothing to cache)
     start: float
     future: asyncio.Future[ChatResult] = field(repr=False)
+    outputs: dict[int, list[int]] = field(default_factory=dict, repr=False)  # continuous: finished rows
+
+    @property
+    def width(self) -> int:
+        """Output rows this request takes in a batch."""
+        return max(1, self.request.sampling.n)
 
 
 def _as_image(image: Any) -> Any:
@@ -107,6 +126,9 @@ class HFBackend:
         self.prefix_hits = 0  # rows whose system prefix came from the cache
         self.prefix_misses = 0  # prefixes computed
         self.prefilled_tokens = 0  # prompt tokens actually run through the model
+        self.decode_steps = 0  # continuous batching: decode steps run, and rows summed over them
+        self.decode_rows = 0
+        self._closing = False
         self._prefix_kv: OrderedDict[tuple[int, ...], list[tuple[Any, Any]]] = OrderedDict()
         self._system_ids: OrderedDict[str, list[int]] = OrderedDict()
         self._system_lock = threading.Lock()
@@ -150,6 +172,7 @@ class HFBackend:
         plain = not self.spec.vision and self._plain_cache_layers()
         self.prefix_cache = self.prefix_cache and plain
         self.fast_decode = bool(opts.get("fast_decode", self.device == "cpu")) and plain
+        self.continuous = bool(opts.get("continuous", True)) and plain
         if self.fast_decode:
             from models import cpu_decode
 
@@ -284,7 +307,8 @@ class HFBackend:
                  future=loop.create_future())
             for r, (t, n, imgs, ids, pl) in zip(requests, prepared, strict=True)
         ]
-        queue.pending.extend(rows)
+        with queue.lock:
+            queue.pending.extend(rows)
         if queue.drainer is None or queue.drainer.done():
             queue.drainer = loop.create_task(self._drain(queue))
         return list(await asyncio.gather(*(row.future for row in rows)))
@@ -298,11 +322,16 @@ class HFBackend:
             await queue.arrived.wait()
 
     async def _drain(self, queue: _LoopQueue) -> None:
-        """Take batches off this loop's queue until it is empty; each batch is one `generate` call."""
+        """Serve this loop's queue until it is empty: continuously (one running batch that requests join
+        and leave between decode steps) or in static batches, one `generate` call each."""
         loop = asyncio.get_running_loop()
         while queue.pending:
             await self._gather(queue)
-            batch, queue.pending[:] = queue.pending[: self.max_batch_size], queue.pending[self.max_batch_size :]
+            if self.continuous:
+                await loop.run_in_executor(self._executor, self._serve, queue, loop)
+                continue
+            with queue.lock:
+                batch, queue.pending[:] = queue.pending[: self.max_batch_size], queue.pending[self.max_batch_size :]
             try:
                 outputs = await loop.run_in_executor(self._executor, self._generate, batch)
             except Exception as exc:  # the whole batch failed: every caller hears why
@@ -318,6 +347,94 @@ class HFBackend:
                         texts=texts, prompt_tokens=row.prompt_tokens, completion_tokens=n_completion,
                         latency_s=now - row.start, model=self.model_id,
                     ))
+
+    # ---- continuous batching (worker thread) ----------------------------------------------------
+
+    def _serve(self, queue: _LoopQueue, loop: asyncio.AbstractEventLoop) -> None:
+        """Run one `RunningBatch` until nothing is pending or running: before each decode step, admit
+        pending requests up to `max_batch_size` rows (one batched prefill); after it, answer every
+        request whose rows all finished. A model error fails the rows it touched, not the queue."""
+        import torch
+
+        from models.hf_continuous import RunningBatch
+
+        running = RunningBatch(self.model, self.eos_ids, self.grammars.vocab_size)
+        with self._lock, torch.inference_mode():
+            try:
+                while not self._closing:
+                    admitted = self._take(queue, self.max_batch_size - len(running), first=not running.slots)
+                    if admitted:
+                        self._admit(running, admitted, loop)
+                    running.drop([s for s in running.slots if s.owner.future.done()])  # callers gone
+                    if not running.slots:
+                        if not admitted:
+                            break
+                        continue
+                    self.decode_steps += 1
+                    self.decode_rows += len(running)
+                    try:
+                        finished = running.step()
+                    except Exception as exc:
+                                    finished = running.fail_all(exc)
+                    self._finish(finished, loop)
+            finally:
+                if running.slots:  # closing: nobody will step these again
+                    self._finish(running.fail_all(BackendError("hf backend closed")), loop)
+
+    def _take(self, queue: _LoopQueue, room: int, *, first: bool) -> list[_Row]:
+        """Pending requests whose rows fit in `room` (an empty batch takes at least one), in order."""
+        taken: list[_Row] = []
+        with queue.lock:
+            while queue.pending and (queue.pending[0].width <= room or (first and not taken)):
+                row = queue.pending.pop(0)
+                room -= row.width
+                taken.append(row)
+        return taken
+
+    def _admit(self, running: Any, admitted: list[_Row], loop: asyncio.AbstractEventLoop) -> None:
+        from models.constrained import RowControl
+        from models.hf_continuous import Slot
+
+        slots = []
+        for row in admitted:
+            s: Sampling = row.request.sampling
+            for k in range(row.width):
+                seed = None if s.seed is None else s.seed + k
+                matcher = self.grammars.matcher(row.request.json_schema) if row.request.json_schema else None
+                slots.append(Slot(owner=row, index=k,
+                                  control=RowControl(s.max_tokens, s.temperature, s.top_p, seed, matcher)))
+        self.generate_calls += 1
+        self.batch_sizes.append(len(slots))
+        try:
+            input_ids, mask, cache = self._prefill_inputs([slot.owner for slot in slots])
+            finished = running.admit(slots, input_ids, mask, cache)
+        except Exception as exc:
+            for slot in slots:
+                slot.error = exc
+            finished = slots
+        self._finish(finished, loop)
+
+    def _finish(self, slots: list[Any], loop: asyncio.AbstractEventLoop) -> None:
+        """Record finished rows; a request whose rows are all in (or one failed) gets its answer."""
+        now = time.perf_counter()
+        for slot in slots:
+            row: _Row = slot.owner
+            if slot.error is not None:
+                error = slot.error if isinstance(slot.error, BackendError) else \
+                    BackendError(f"hf backend: generation failed: {slot.error!r}")
+                loop.call_soon_threadsafe(_settle, row.future, None, error)
+                continue
+            row.outputs[slot.index] = slot.tokens
+            if len(row.outputs) == row.width:
+                outs = [row.outputs[k] for k in range(row.width)]
+                result = ChatResult(
+                    texts=[self.tokenizer.decode(ids, skip_special_tokens=True) for ids in outs],
+                    prompt_tokens=row.prompt_tokens, completion_tokens=sum(len(ids) for ids in outs),
+                    latency_s=now - row.start, model=self.model_id,
+                )
+                loop.call_soon_threadsafe(_settle, row.future, result, None)
+
+    # ---- static batches ------------------------------------------------------------------------
 
     def _generate(self, batch: list[_Row]) -> list[tuple[list[str], int]]:
         """Run ONE `generate` over every output row of the batch (n rows per request)."""
@@ -379,11 +496,22 @@ class HFBackend:
         return tensors
 
     def _encode_with_prefixes(self, rows: list[_Row]) -> dict[str, Any]:
-        """Inputs for `generate` with each row's cached system prefix spliced into `past_key_values`.
+        """Inputs for `generate` with each row's cached system prefix spliced into `past_key_values`."""
+        import torch
+
+        suffix_ids, mask, cache = self._prefill_inputs(rows)
+        width_p = max(r.prefix_len for r in rows)  # `generate` wants the cached columns' ids in front
+        front = torch.tensor([r.ids[: r.prefix_len] + [int(self.tokenizer.pad_token_id)] * (width_p - r.prefix_len)
+                              for r in rows], dtype=suffix_ids.dtype, device=suffix_ids.device)
+        return {"input_ids": torch.cat([front, suffix_ids], dim=1), "attention_mask": mask, "past_key_values": cache}
+
+    def _prefill_inputs(self, rows: list[_Row]) -> tuple[Any, Any, Any]:
+        """(input ids, attention mask, cache) for prefilling `rows`, cached system prefixes spliced in.
 
         Row i is laid out as [prefix_i][pad up to the longest prefix][pad][suffix_i]: the stored prefix
-        fills the first columns of the cache, everything else in the cache is masked, and generate
-        only runs the columns after the cache. Position ids (mask cumsum) continue each row's prefix.
+        fills the first columns of the cache, everything else in the cache is masked, and the model
+        only runs the columns after the cache (all of a row's tokens when nothing is cached: the cache
+        is then empty). Position ids (mask cumsum) continue each row's prefix.
         """
         import torch
         from transformers import DynamicCache
@@ -394,10 +522,12 @@ class HFBackend:
         input_ids, mask = [], []
         for r in rows:
             p, suffix = r.prefix_len, r.ids[r.prefix_len:]
-            gap = (width_p - p) + (width_s - len(suffix))
-            input_ids.append(r.ids[:p] + [pad] * gap + suffix)
-            mask.append([1] * p + [0] * gap + [1] * len(suffix))
+            input_ids.append([pad] * (width_s - len(suffix)) + suffix)
+            mask.append([1] * p + [0] * (width_p - p) + [0] * (width_s - len(suffix)) + [1] * len(suffix))
             self.prefilled_tokens += len(suffix)
+        if not width_p:
+            return (torch.tensor(input_ids, device=self.device), torch.tensor(mask, device=self.device),
+                    DynamicCache(config=self.model.config))
         per_row = [self._prefix_tensors(r.ids[: r.prefix_len]) if r.prefix_len else None for r in rows]
         template = next(t for t in per_row if t is not None)
         layers = []
@@ -410,11 +540,8 @@ class HFBackend:
                     keys[i, :, : k.shape[2]] = k[0]
                     values[i, :, : v.shape[2]] = v[0]
             layers.append((keys, values))
-        return {
-            "input_ids": torch.tensor(input_ids, device=self.device),
-            "attention_mask": torch.tensor(mask, device=self.device),
-            "past_key_values": DynamicCache(ddp_cache_data=layers, config=self.model.config),
-        }
+        return (torch.tensor(input_ids, device=self.device), torch.tensor(mask, device=self.device),
+                DynamicCache(ddp_cache_data=layers, config=self.model.config))
 
     def _encode(self, texts: list[str], images: list[Any]) -> dict[str, Any]:
         inputs = dict(self.tokenizer(texts, return_tensors="pt", padding=True, add_special_tokens=False))
@@ -446,6 +573,7 @@ class HFBackend:
             if queue.drainer is not None:
                 queue.drainer.cancel()
         self._queues.clear()
+        self._closing = True  # a running continuous batch stops at its next step
         self._executor.shutdown(wait=True)
         self._prefix_kv.clear()
         self.model = None
@@ -457,3 +585,13 @@ class HFBackend:
                 torch.cuda.empty_cache()
         except ImportError:
             pass
+
+
+def _settle(future: asyncio.Future[ChatResult], result: ChatResult | None, error: BaseException | None) -> None:
+    """Complete a caller's future on its own loop (scheduled there from the worker thread)."""
+    if future.done():
+        return
+    if error is not None:
+        future.set_exception(error)
+    else:
+        future.set_result(result)

@@ -1,0 +1,179 @@
+"""Continuous batching for the hf backend: rows join and leave one running decode batch between steps.
+
+A static batch (one `generate` call) runs until its LONGEST row is done: a stream whose short judge
+answer finished at step 20 waits for a planner row still at step 120, and a request that arrives
+meanwhile waits for the whole batch. `RunningBatch` keeps the batch's key/value cache
+([rows, heads, length, dim] per layer) and its 2-D attention mask between decode steps, so the
+backend's worker can, before every step, prefill whatever request is pending and splice it in, and,
+after every step, hand back each row that finished and cut it out of the cache.
+
+Layout: a new row is left-padded to the running length (or the running rows to the new one) and the
+padding is masked; position ids count each row's own tokens. So every row attends to exactly its own
+prompt and output, whatever else shares the batch: in float32 a row decodes the same tokens alone,
+in a static batch, or joining a running one (bf16 kernels may round differently with the batch size).
+Leading columns that no remaining row uses are trimmed when rows leave.
+
+Per-row schema masks, sampling, seeds and max_tokens come from `models.constrained.RowsProcessor`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import torch
+import torch.nn.functional as F
+
+from models.base import BackendError
+from models.constrained import RowControl, RowsProcessor
+
+__all__ = ["RunningBatch", "Slot"]
+
+
+@dataclass(eq=False)
+class Slot:
+    """One output row in the running batch (a request with n > 1 has n slots)."""
+
+    owner: Any  # what the caller needs to route the result (the backend's pending request)
+    index: int  # which of the owner's outputs this row is
+    control: RowControl
+    tokens: list[int] = field(default_factory=list)  # emitted so far, end-of-sequence excluded
+    next_token: int = -1  # emitted but not yet run through the model
+    position: int = 0  # position id of `next_token`: this row's own token count before it
+    error: BaseException | None = None
+
+    @property
+    def done(self) -> bool:
+        return self.control.done or self.error is not None
+
+
+class RunningBatch:
+    """The running decode batch of one worker thread (not thread-safe; call under the model's lock)."""
+
+    def __init__(self, model: Any, eos_ids: list[int], grammar_vocab: int) -> None:
+        self.model = model
+        self.rules = RowsProcessor([], eos_ids, 0, grammar_vocab)
+        self.slots: list[Slot] = []
+        self.cache: Any = None  # transformers DynamicCache of the running rows
+        self.mask: torch.Tensor | None = None  # [rows, length], 1 where a row has a token
+
+    def __len__(self) -> int:
+        return len(self.slots)
+
+    @property
+    def length(self) -> int:
+        return 0 if self.mask is None else int(self.mask.shape[1])
+
+    def admit(self, slots: list[Slot], input_ids: torch.Tensor, mask: torch.Tensor, cache: Any) -> list[Slot]:
+        """Prefill new rows and splice them in; returns the rows already finished by their first token.
+
+        `cache` holds what precedes `input_ids` for these rows (spliced system prefixes, or nothing);
+        `mask` covers cache and input columns together, [len(slots), cache length + input length].
+        """
+        width = int(input_ids.shape[1])
+        past = int(mask.shape[1]) - width
+        position_ids = (mask.cumsum(-1) - 1).clamp(min=0)[:, past:]
+        out = self.model(input_ids=input_ids, attention_mask=mask, position_ids=position_ids,
+                         past_key_values=cache, use_cache=True, logits_to_keep=1,
+                         cache_position=torch.arange(past, past + width, device=input_ids.device))
+        for i, slot in enumerate(slots):
+            slot.position = int(mask[i].sum())
+        first = len(self.slots)
+        self._splice(slots, out.past_key_values, mask)
+        finished = self._emit(out.logits[:, -1, :], self.slots[first:])
+        self._drop(finished)
+        return finished
+
+    def step(self) -> list[Slot]:
+        """One decode step for every running row; returns (and drops) the rows that finished."""
+        assert self.mask is not None and self.slots
+        device = self.mask.device
+        rows = len(self.slots)
+        input_ids = torch.tensor([[s.next_token] for s in self.slots], device=device)
+        position_ids = torch.tensor([[s.position] for s in self.slots], device=device)
+        past = self.length
+        self.mask = torch.cat([self.mask, self.mask.new_ones((rows, 1))], dim=1)
+        out = self.model(input_ids=input_ids, attention_mask=self.mask, position_ids=position_ids,
+                         past_key_values=self.cache, use_cache=True,
+                         cache_position=torch.tensor([past], device=device))
+        for slot in self.slots:
+            slot.position += 1
+        finished = self._emit(out.logits[:, -1, :], self.slots)
+        self._drop(finished)
+        return finished
+
+    def drop(self, slots: Iterable[Slot]) -> None:
+        """Cut rows out of the batch (a caller gave up on them)."""
+        self._drop([s for s in slots if s in self.slots])
+
+    def fail_all(self, error: BaseException) -> list[Slot]:
+        """Every running row failed (the model raised): they are returned and the batch is empty."""
+        failed = self.slots
+        for slot in failed:
+            slot.error = error
+        self.slots, self.cache, self.mask = [], None, None
+        return failed
+
+    # ---- internals ------------------------------------------------------------------------------
+
+    def _emit(self, logits: torch.Tensor, slots: list[Slot]) -> list[Slot]:
+        """Pick each row's next token from its logits row (schema, sampling, limit); the finished rows."""
+        finished = []
+        for i, slot in enumerate(slots):
+            row = slot.control
+            try:
+                scores = logits[i].float()  # a copy: the schema mask works in place
+                self.rules.control(row, scores)
+                token = int(torch.argmax(scores))
+                self.rules.consume(row, token)
+            except BackendError as exc:  # this row's grammar failed; the others go on
+                slot.error = exc
+                finished.append(slot)
+                continue
+            if row.done:
+                finished.append(slot)
+                continue
+            slot.tokens.append(token)
+            slot.next_token = token
+            if row.generated >= row.max_tokens:
+                row.done = True
+                finished.append(slot)
+        return finished
+
+    def _splice(self, slots: list[Slot], cache: Any, mask: torch.Tensor) -> None:
+        """Append new rows (their cache and mask) to the running ones, left-padding to one length."""
+        if self.cache is None:
+            self.slots, self.cache, self.mask = list(slots), cache, mask
+            return
+        assert self.mask is not None
+        width = max(self.length, int(mask.shape[1]))
+        for mine, theirs in zip(self.cache.layers, cache.layers, strict=True):
+            mine.keys = torch.cat([_pad_left(mine.keys, width), _pad_left(theirs.keys, width)], dim=0)
+            mine.values = torch.cat([_pad_left(mine.values, width), _pad_left(theirs.values, width)], dim=0)
+        self.mask = torch.cat([F.pad(self.mask, (width - self.length, 0)), F.pad(mask, (width - mask.shape[1], 0))])
+        self.slots.extend(slots)
+
+    def _drop(self, gone: list[Slot]) -> None:
+        if not gone:
+            return
+        keep = [i for i, s in enumerate(self.slots) if s not in gone]
+        if not keep:
+            self.slots, self.cache, self.mask = [], None, None
+            return
+        assert self.mask is not None
+        index = torch.tensor(keep, device=self.mask.device)
+        mask = self.mask.index_select(0, index)
+        used = torch.nonzero(mask.any(dim=0))
+        start = int(used[0]) if used.numel() else 0  # leading columns only the dropped rows used
+        self.mask = mask[:, start:]
+        for layer in self.cache.layers:
+            layer.keys = layer.keys.index_select(0, index)[:, :, start:]
+            layer.values = layer.values.index_select(0, index)[:, :, start:]
+        self.slots = [self.slots[i] for i in keep]
+
+
+def _pad_left(tensor: torch.Tensor, width: int) -> torch.Tensor:
+    """[rows, heads, length, dim] zero-padded on the left of the length axis to `width`."""
+    extra = width - tensor.shape[2]
+    return tensor if extra == 0 else F.pad(tensor, (0, 0, extra, 0))
