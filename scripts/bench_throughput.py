@@ -134,8 +134,9 @@ async def main_async(args: argparse.Namespace) -> dict[str, Any]:
             r = await _run([s], work / f"seq{i}", backend, embedder, args.episodes, "")
             seq_eps += r["episodes"]
         seq_wall = time.perf_counter() - t0
-        seq_tokens = backend.completion_tokens
-        print(f"(a) sequential: {seq_eps} episodes in {seq_wall:.1f}s", file=sys.stderr)
+        seq_tokens, seq_calls = backend.completion_tokens, backend.calls
+        print(f"(a) sequential: {seq_eps} episodes in {seq_wall:.1f}s, {seq_calls} calls, {seq_tokens} tokens",
+              file=sys.stderr)
 
         # (b) multi-stream
         backend.reset()
@@ -148,7 +149,8 @@ async def main_async(args: argparse.Namespace) -> dict[str, Any]:
         suite_tps = backend.completion_tokens / multi_wall
         outside = max(0.0, 1.0 - backend.busy_s / multi_wall)
         requests = list(backend.requests)
-        print(f"(b) multi-stream: {multi_eps} episodes in {multi_wall:.1f}s, {backend.calls} calls",
+        multi_tokens, multi_calls = backend.completion_tokens, backend.calls
+        print(f"(b) multi-stream: {multi_eps} episodes in {multi_wall:.1f}s, {multi_calls} calls, {multi_tokens} tokens",
               file=sys.stderr)
 
         # raw engine on the same request mix, submitted at the same concurrency as (b) had streams
@@ -180,7 +182,12 @@ async def main_async(args: argparse.Namespace) -> dict[str, Any]:
         "engine_tokens_per_s": round(engine_tps, 1),
         "suite_tokens_per_s": round(suite_tps, 1),
         "outside_model_share": round(outside, 4),
+        # bf16 greedy decoding may round differently in a batch, so the two modes' episodes can differ
+        # in length: the tokens and calls each mode did, and the ratio of their token rates, show it
         "sequential_tokens": seq_tokens,
+        "streams_tokens": multi_tokens,
+        "calls": {"sequential": seq_calls, "streams": multi_calls},
+        "token_rate_ratio": round((multi_tokens / multi_wall) / max(seq_tokens / seq_wall, 1e-9), 2),
         "wall_s": {"sequential": round(seq_wall, 1), "streams": round(multi_wall, 1), "raw": round(raw_wall, 1),
                    "total": round(time.perf_counter() - t_start, 1)},
     }
