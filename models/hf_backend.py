@@ -328,7 +328,10 @@ class HFBackend:
         while queue.pending:
             await self._gather(queue)
             if self.continuous:
-                await loop.run_in_executor(self._executor, self._serve, queue, loop)
+                try:
+                    await loop.run_in_executor(self._executor, self._serve, queue, loop)
+                except Exception:  # its callers already have the error; serve whoever is still pending
+                    pass
                 continue
             with queue.lock:
                 batch, queue.pending[:] = queue.pending[: self.max_batch_size], queue.pending[self.max_batch_size :]
@@ -375,8 +378,11 @@ class HFBackend:
                     try:
                         finished = running.step()
                     except Exception as exc:
-                                    finished = running.fail_all(exc)
+                        finished = running.fail_all(exc)
                     self._finish(finished, loop)
+            except Exception as exc:  # a bug here must not leave callers waiting forever
+                self._finish(running.fail_all(BackendError(f"hf backend: batching failed: {exc!r}")), loop)
+                raise
             finally:
                 if running.slots:  # closing: nobody will step these again
                     self._finish(running.fail_all(BackendError("hf backend closed")), loop)
@@ -395,17 +401,17 @@ class HFBackend:
         from models.constrained import RowControl
         from models.hf_continuous import Slot
 
-        slots = []
-        for row in admitted:
-            s: Sampling = row.request.sampling
-            for k in range(row.width):
-                seed = None if s.seed is None else s.seed + k
-                matcher = self.grammars.matcher(row.request.json_schema) if row.request.json_schema else None
-                slots.append(Slot(owner=row, index=k,
-                                  control=RowControl(s.max_tokens, s.temperature, s.top_p, seed, matcher)))
+        slots = [Slot(owner=row, index=k, control=RowControl(row.request.sampling.max_tokens))
+                 for row in admitted for k in range(row.width)]
         self.generate_calls += 1
         self.batch_sizes.append(len(slots))
         try:
+            for slot in slots:
+                s: Sampling = slot.owner.request.sampling
+                schema = slot.owner.request.json_schema
+                slot.control = RowControl(s.max_tokens, s.temperature, s.top_p,
+                                          None if s.seed is None else s.seed + slot.index,
+                                          self.grammars.matcher(schema) if schema else None)
             input_ids, mask, cache = self._prefill_inputs([slot.owner for slot in slots])
             finished = running.admit(slots, input_ids, mask, cache)
         except Exception as exc:

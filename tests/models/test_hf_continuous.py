@@ -132,3 +132,32 @@ def test_a_cancelled_caller_leaves_the_batch(smollm2_f32: Any) -> None:
     result, steps = asyncio.run(run())
     assert result.completion_tokens <= 8
     assert steps < 100  # the story row was dropped, not decoded to 400 tokens
+
+
+def test_a_model_error_fails_the_running_rows_and_the_next_request_is_served(smollm2_f32: Any) -> None:
+    from models.base import BackendError
+
+    model = smollm2_f32.model
+    original = model.forward
+    calls = {"decode": 0}
+
+    def failing_once(*args: Any, **kwargs: Any) -> Any:
+        if kwargs["input_ids"].shape[1] == 1 and calls["decode"] == 0:  # the first decode step
+            calls["decode"] += 1
+            raise RuntimeError("simulated kernel failure")
+        return original(*args, **kwargs)
+
+    ask = ChatRequest(messages=[{"role": "user", "content": "Say hi."}], sampling=Sampling(max_tokens=8))
+    model.forward = failing_once
+    try:
+        async def run() -> Any:
+            results = await asyncio.gather(smollm2_f32.complete([ask]), smollm2_f32.complete([ask]),
+                                           return_exceptions=True)
+            return results, await smollm2_f32.complete([ask])
+
+        (first, second), after = asyncio.run(run())
+    finally:
+        del model.forward  # back to the class method
+    for failed in (first, second):
+        assert isinstance(failed, BackendError) and "simulated kernel failure" in str(failed)
+    assert after[0].completion_tokens > 0
