@@ -328,10 +328,7 @@ class HFBackend:
         while queue.pending:
             await self._gather(queue)
             if self.continuous:
-                try:
-                    await loop.run_in_executor(self._executor, self._serve, queue, loop)
-                except Exception:  # its callers already have the error; serve whoever is still pending
-                    pass
+                await loop.run_in_executor(self._executor, self._serve, queue, loop)
                 continue
             with queue.lock:
                 batch, queue.pending[:] = queue.pending[: self.max_batch_size], queue.pending[self.max_batch_size :]
@@ -380,9 +377,8 @@ class HFBackend:
                     except Exception as exc:
                         finished = running.fail_all(exc)
                     self._finish(finished, loop)
-            except Exception as exc:  # a bug here must not leave callers waiting forever
+            except Exception as exc:  # a bug here must not leave callers waiting, nor stop the queue
                 self._finish(running.fail_all(BackendError(f"hf backend: batching failed: {exc!r}")), loop)
-                raise
             finally:
                 if running.slots:  # closing: nobody will step these again
                     self._finish(running.fail_all(BackendError("hf backend closed")), loop)

@@ -123,7 +123,7 @@ class RunningBatch:
         for i, slot in enumerate(slots):
             row = slot.control
             try:
-                scores = logits[i].float()  # a copy: the schema mask works in place
+                scores = logits[i].float()  # masked in place; these logits are not used again
                 self.rules.control(row, scores)
                 token = int(torch.argmax(scores))
                 self.rules.consume(row, token)
