@@ -28,7 +28,12 @@ import torch.nn.functional as F
 from models.base import BackendError
 from models.constrained import RowControl, RowsProcessor
 
-__all__ = ["RunningBatch", "Slot"]
+try:  # the cache layer protocol; importing this module must not need transformers
+    from transformers.cache_utils import DynamicLayer
+except ImportError:  # pragma: no cover - transformers is a dependency of the hf backend
+    DynamicLayer = object  # type: ignore[assignment,misc]
+
+__all__ = ["BufferLayer", "RunningBatch", "Slot"]
 
 
 @dataclass(eq=False)
@@ -83,6 +88,7 @@ class RunningBatch:
         self._splice(slots, out.past_key_values, mask)
         finished = self._emit(out.logits[:, -1, :], self.slots[first:])
         self._drop(finished)
+        self._own_cache()
         return finished
 
     def step(self) -> list[Slot]:
@@ -93,6 +99,8 @@ class RunningBatch:
         input_ids = torch.tensor([[s.next_token] for s in self.slots], device=device)
         position_ids = torch.tensor([[s.position] for s in self.slots], device=device)
         past = self.length
+        if any(getattr(layer, "room", 1) < 1 for layer in self.cache.layers):  # a row outlived its max_tokens
+            self._own_cache()
         self.mask = torch.cat([self.mask, self.mask.new_ones((rows, 1))], dim=1)
         out = self.model(input_ids=input_ids, attention_mask=self.mask, position_ids=position_ids,
                          past_key_values=self.cache, use_cache=True,
@@ -100,12 +108,17 @@ class RunningBatch:
         for slot in self.slots:
             slot.position += 1
         finished = self._emit(out.logits[:, -1, :], self.slots)
-        self._drop(finished)
+        if finished:
+            self._drop(finished)
+            self._own_cache()
         return finished
 
     def drop(self, slots: Iterable[Slot]) -> None:
         """Cut rows out of the batch (a caller gave up on them)."""
-        self._drop([s for s in slots if s in self.slots])
+        gone = [s for s in slots if s in self.slots]
+        if gone:
+            self._drop(gone)
+            self._own_cache()
 
     def fail_all(self, error: BaseException) -> list[Slot]:
         """Every running row failed (the model raised): they are returned and the batch is empty."""
@@ -148,9 +161,12 @@ class RunningBatch:
             return
         assert self.mask is not None
         width = max(self.length, int(mask.shape[1]))
+        layers = []
         for mine, theirs in zip(self.cache.layers, cache.layers, strict=True):
-            mine.keys = torch.cat([_pad_left(mine.keys, width), _pad_left(theirs.keys, width)], dim=0)
-            mine.values = torch.cat([_pad_left(mine.values, width), _pad_left(theirs.values, width)], dim=0)
+            (k0, v0), (k1, v1) = _written(mine), _written(theirs)
+            layers.append((torch.cat([_pad_left(k0, width), _pad_left(k1, width)], dim=0),
+                           torch.cat([_pad_left(v0, width), _pad_left(v1, width)], dim=0)))
+        self.cache.layers = [_plain(k, v) for k, v in layers]
         self.mask = torch.cat([F.pad(self.mask, (width - self.length, 0)), F.pad(mask, (width - mask.shape[1], 0))])
         self.slots.extend(slots)
 
@@ -167,10 +183,75 @@ class RunningBatch:
         used = torch.nonzero(mask.any(dim=0))
         start = int(used[0]) if used.numel() else 0  # leading columns only the dropped rows used
         self.mask = mask[:, start:]
-        for layer in self.cache.layers:
-            layer.keys = layer.keys.index_select(0, index)[:, :, start:]
-            layer.values = layer.values.index_select(0, index)[:, :, start:]
+        self.cache.layers = [_plain(k.index_select(0, index)[:, :, start:], v.index_select(0, index)[:, :, start:])
+                             for k, v in map(_written, self.cache.layers)]
         self.slots = [self.slots[i] for i in keep]
+
+    def _own_cache(self) -> None:
+        """Move the cache into `BufferLayer`s with room for the running rows' remaining tokens, so a
+        decode step writes its column in place. Runs after the batch's rows change."""
+        if self.cache is None or not self.slots:
+            return
+        room = max(1, max(s.control.max_tokens - s.control.generated for s in self.slots) + 1)
+        self.cache.layers = [BufferLayer(*_written(layer), room) for layer in self.cache.layers]
+
+
+class BufferLayer(DynamicLayer):  # type: ignore[misc,valid-type]
+    """A full-attention cache layer in a preallocated buffer [rows, heads, length + room, dim].
+
+    transformers' `DynamicLayer` appends each step's key/value column with `torch.cat`, copying the
+    whole cache every step: at 8 rows x 1,200 cached tokens that copy was a third of a SmolLM2 decode
+    step on this CPU. Here a step writes its column in place. Attention gets the WHOLE buffer (the
+    unwritten columns are zeros, and `get_mask_sizes` makes the attention mask that wide, so they are
+    masked out, as with transformers' static cache): a view of the written part would be strided, and
+    CPU batched matmuls copy strided operands, which costs as much as the copy this layer avoids.
+    """
+
+    def __init__(self, keys: torch.Tensor, values: torch.Tensor, room: int) -> None:
+        super().__init__()
+        self.dtype, self.device = keys.dtype, keys.device
+        self.is_initialized = True
+        rows, heads, length, _ = keys.shape
+        self.keys = keys.new_zeros((rows, heads, length + room, keys.shape[3]))
+        self.values = values.new_zeros((rows, heads, length + room, values.shape[3]))
+        self.keys[:, :, :length] = keys
+        self.values[:, :, :length] = values
+        self.length = length
+
+    @property
+    def room(self) -> int:
+        return int(self.keys.shape[2]) - self.length
+
+    def update(self, key_states: torch.Tensor, value_states: torch.Tensor, *args: Any,
+               **kwargs: Any) -> tuple[torch.Tensor, torch.Tensor]:
+        width = int(key_states.shape[-2])
+        if width > self.room:  # the mask was already sized from this buffer: it cannot grow here
+            raise RuntimeError(f"cache buffer full ({self.length} + {width} > {self.keys.shape[2]})")
+        self.keys[:, :, self.length:self.length + width] = key_states
+        self.values[:, :, self.length:self.length + width] = value_states
+        self.length += width
+        return self.keys, self.values
+
+    def get_mask_sizes(self, query_length: int) -> tuple[int, int]:
+        return int(self.keys.shape[2]), 0
+
+    def get_seq_length(self) -> int:
+        return self.length
+
+
+def _plain(keys: torch.Tensor, values: torch.Tensor) -> Any:
+    """A transformers `DynamicLayer` holding these keys and values (`_own_cache` then buffers it)."""
+    layer = DynamicLayer()
+    layer.lazy_initialization(keys, values)
+    layer.keys, layer.values = keys, values
+    return layer
+
+
+def _written(layer: Any) -> tuple[torch.Tensor, torch.Tensor]:
+    """A cache layer's written keys and values, [rows, heads, length, dim]."""
+    if isinstance(layer, BufferLayer):
+        return layer.keys[:, :, :layer.length], layer.values[:, :, :layer.length]
+    return layer.keys, layer.values
 
 
 def _pad_left(tensor: torch.Tensor, width: int) -> torch.Tensor:

@@ -100,7 +100,8 @@ async def _run(streams: list[Any], out: Path, backend: Any, embedder: Any, episo
     wall = time.perf_counter() - t0
     if result.failed:
         raise SystemExit(f"streams failed: {[o.error for o in result.failed]}")
-    return {"wall_s": wall, "episodes": sum(len(o.records) for o in result.outcomes)}
+    return {"wall_s": wall, "episodes": sum(len(o.records) for o in result.outcomes),
+            "stream_s": sorted(o.seconds for o in result.outcomes)}
 
 
 async def main_async(args: argparse.Namespace) -> dict[str, Any]:
@@ -146,6 +147,10 @@ async def main_async(args: argparse.Namespace) -> dict[str, Any]:
             mean = (backend.inner.decode_rows - steps[1]) / (backend.inner.decode_steps - steps[0])
             print(f"(b) mean rows per decode step: {mean:.2f}", file=sys.stderr)
         multi_wall, multi_eps = r["wall_s"], r["episodes"]
+        spread = r["stream_s"]
+        # streams end at different times; once fewer remain than the batch had, the engine runs part-empty
+        print(f"(b) streams took {spread[0]:.0f}s (shortest) to {spread[-1]:.0f}s (longest), "
+              f"median {spread[len(spread) // 2]:.0f}s", file=sys.stderr)
         suite_tps = backend.completion_tokens / multi_wall
         outside = max(0.0, 1.0 - backend.busy_s / multi_wall)
         requests = list(backend.requests)
@@ -187,6 +192,8 @@ async def main_async(args: argparse.Namespace) -> dict[str, Any]:
         "sequential_tokens": seq_tokens,
         "streams_tokens": multi_tokens,
         "calls": {"sequential": seq_calls, "streams": multi_calls},
+        "stream_seconds": {"shortest": round(spread[0], 1), "median": round(spread[len(spread) // 2], 1),
+                           "longest": round(spread[-1], 1)},
         "token_rate_ratio": round((multi_tokens / multi_wall) / max(seq_tokens / seq_wall, 1e-9), 2),
         "wall_s": {"sequential": round(seq_wall, 1), "streams": round(multi_wall, 1), "raw": round(raw_wall, 1),
                    "total": round(time.perf_counter() - t_start, 1)},

@@ -108,6 +108,43 @@ def test_finished_rows_leave_and_their_columns_are_trimmed(smollm2_f32: Any) -> 
     assert running.cache is None and running.mask is None
 
 
+def test_decode_steps_write_the_cache_in_place_and_decode_as_a_growing_cache(smollm2_f32: Any) -> None:
+    """`BufferLayer`: a step writes its column into the preallocated buffer (no copy of the cache), and
+    the masked unwritten columns change nothing: the same tokens as transformers' own growing cache."""
+    import torch
+
+    from models.constrained import RowControl
+    from models.hf_continuous import BufferLayer, RunningBatch, Slot
+
+    backend = smollm2_f32
+    prompts = [backend._prepare(i, ChatRequest(messages=[{"role": "user", "content": text}]))[3]
+               for i, text in enumerate(["Name three kitchen objects.", "Count from one to ten, in words, slowly."])]
+
+    def decode(buffered: bool) -> tuple[list[list[int]], list[tuple[int, int]]]:
+        running = RunningBatch(backend.model, backend.eos_ids, backend.grammars.vocab_size)
+        if not buffered:
+            running._own_cache = lambda: None  # leave transformers' DynamicLayers in place
+        slots = [Slot(owner=None, index=0, control=RowControl(24)) for _ in prompts]
+        width = max(len(ids) for ids in prompts)
+        input_ids = torch.tensor([[0] * (width - len(ids)) + ids for ids in prompts])
+        mask = torch.tensor([[0] * (width - len(ids)) + [1] * len(ids) for ids in prompts])
+        storage: list[tuple[int, int]] = []  # (rows, address of layer 0's keys) before each step
+        with torch.inference_mode():
+            running.admit(slots, input_ids, mask, _empty_cache(backend))
+            while running.slots:
+                layer = running.cache.layers[0]
+                assert isinstance(layer, BufferLayer) is buffered
+                storage.append((len(running), layer.keys.data_ptr()))
+                running.step()
+        return [s.tokens for s in slots], storage
+
+    (buffered, storage), (grown, grown_storage) = decode(True), decode(False)
+    assert buffered == grown and min(len(t) for t in buffered) > 10
+    # one buffer while the same rows run (a new one only when a row leaves) ...
+    assert len(set(storage)) == len({rows for rows, _ in storage}) < len(storage) / 5
+    assert len(set(grown_storage)) == len(grown_storage)  # ... where torch.cat made a new tensor every step
+
+
 def _empty_cache(backend: Any) -> Any:
     from transformers import DynamicCache
 
