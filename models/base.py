@@ -25,8 +25,10 @@ __all__ = [
     "request_key",
 ]
 
-Role = Literal["planner", "judge", "reflector", "distiller", "summarizer"]
-ROLES: tuple[str, ...] = ("planner", "judge", "reflector", "distiller", "summarizer")
+# A request's role tag says which call of a method it is (for accounting and routing). WorldMind's roles
+# come first; baselines add their own (selector, critic, world_model, ...). Any short name is valid.
+Role = str
+ROLES: tuple[str, ...] = ("planner", "judge", "reflector", "distiller", "summarizer", "refiner")
 
 
 class BackendError(RuntimeError):

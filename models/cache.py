@@ -4,22 +4,35 @@
 threads and between processes. `CachingBackend(inner, cache)` wraps any backend: hits come from the
 file, misses go to the inner backend in one batch and are written before they are returned, so a run
 that crashes loses no paid-for answer, and `replay` can later re-run it exactly without the model.
+
+Next to every response the request itself is kept (`requests` table: messages with images as their
+sha256, sampling, schema, role; first write wins), so a recorded answer can be read with its question.
+
+The cache is not the source of truth (`episodes.jsonl` is): a damaged file (not a database, or failing
+sqlite's `quick_check`) is moved aside as `cache.sqlite.corrupt-<timestamp>` with a warning and the run
+goes on with an empty cache. Opened read only (`create=False`: replay, `worldmind show`) it cannot be
+replaced, so damage is a `ReplayCacheError`, one line naming the file.
 """
 
 from __future__ import annotations
 
 import json
+import logging
+import os
 import sqlite3
 import threading
 import time
-from collections.abc import Iterable, Sequence
-from dataclasses import replace
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
-from models.base import ChatBackend, ChatRequest, ChatResult, request_key
+from models.base import BackendError, ChatBackend, ChatRequest, ChatResult, _jsonable_content, request_key
 
-__all__ = ["CACHE_FILENAME", "CachingBackend", "ResponseCache", "resolve_cache_path"]
+__all__ = ["CACHE_FILENAME", "CachingBackend", "ReplayCacheError", "ResponseCache", "request_record",
+           "resolve_cache_path"]
+
+log = logging.getLogger(__name__)
 
 CACHE_FILENAME = "cache.sqlite"
 
@@ -35,6 +48,39 @@ CREATE TABLE IF NOT EXISTS responses (
     created REAL NOT NULL
 )
 """
+_REQUESTS_SCHEMA = "CREATE TABLE IF NOT EXISTS requests (key TEXT PRIMARY KEY, request TEXT NOT NULL)"
+_DAMAGE_CODES = (11, 26)  # SQLITE_CORRUPT, SQLITE_NOTADB (primary result codes)
+
+
+class ReplayCacheError(BackendError, ValueError):
+    """A response cache opened read only (replay) is damaged: its answers cannot be served."""
+
+
+class _Damaged(Exception):
+    """The file is not a usable sqlite database (the reason is the message)."""
+
+
+def _is_damage(exc: sqlite3.DatabaseError) -> bool:
+    code = getattr(exc, "sqlite_errorcode", None)
+    if code is not None:
+        return code & 0xFF in _DAMAGE_CODES
+    text = str(exc)
+    return "not a database" in text or "malformed" in text
+
+
+def request_record(request: ChatRequest) -> dict[str, Any]:
+    """The request as JSON-able data: messages (an image becomes its sha256, size and mode), sampling,
+    schema, template options and role."""
+    return {
+        "messages": [
+            {**{k: v for k, v in m.items() if k != "content"}, "content": _jsonable_content(m.get("content"))}
+            for m in request.messages
+        ],
+        "sampling": asdict(request.sampling),
+        "json_schema": request.json_schema,
+        "chat_template_kwargs": request.chat_template_kwargs,
+        "role": request.role,
+    }
 
 
 def resolve_cache_path(path: str | Path) -> Path:
@@ -48,16 +94,65 @@ class ResponseCache:
 
     def __init__(self, path: str | Path, *, create: bool = True) -> None:
         self.path = resolve_cache_path(path)
+        self.read_only = not create
         if not create and not self.path.is_file():
             raise FileNotFoundError(f"response cache {self.path} does not exist")
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._lock = threading.Lock()
-        self._db = sqlite3.connect(self.path, check_same_thread=False, timeout=30.0)
-        with self._lock:
-            self._db.execute("PRAGMA journal_mode=WAL")
-            self._db.execute("PRAGMA synchronous=NORMAL")
-            self._db.execute(_SCHEMA)
-            self._db.commit()
+        self._broken: str | None = None
+        try:
+            self._db = self._connect()
+        except _Damaged as exc:
+            if self.read_only:
+                raise self._replay_error(str(exc)) from None
+            self._move_aside(str(exc))
+            self._db = self._connect()
+
+    def _connect(self) -> sqlite3.Connection:
+        """Open, set WAL, make the tables, and run sqlite's quick_check; _Damaged if the file is bad."""
+        db = sqlite3.connect(self.path, check_same_thread=False, timeout=30.0)
+        try:
+            db.execute("PRAGMA journal_mode=WAL")
+            db.execute("PRAGMA synchronous=NORMAL")
+            db.execute(_SCHEMA)
+            db.execute(_REQUESTS_SCHEMA)
+            db.commit()
+            verdict = db.execute("PRAGMA quick_check(1)").fetchone()
+        except sqlite3.DatabaseError as exc:
+            db.close()
+            if _is_damage(exc):
+                raise _Damaged(str(exc)) from None
+            raise
+        if not verdict or verdict[0] != "ok":
+            db.close()
+            raise _Damaged("quick_check: " + " ".join(str(verdict[0] if verdict else "no answer").split()))
+        return db
+
+    def _move_aside(self, reason: str) -> None:
+        """Rename the damaged file (and its WAL) to `<name>.corrupt-<timestamp>`; drop its shared memory."""
+        stamp = time.strftime("%Y%m%dT%H%M%S")
+        aside = self.path.with_name(f"{self.path.name}.corrupt-{stamp}")
+        os.replace(self.path, aside)
+        wal = self.path.with_name(self.path.name + "-wal")
+        if wal.exists():
+            os.replace(wal, aside.with_name(aside.name + "-wal"))
+        self.path.with_name(self.path.name + "-shm").unlink(missing_ok=True)
+        log.warning("response cache %s is damaged (%s): moved aside to %s; continuing with an empty cache "
+                    "(answers recorded there will be asked again)", self.path, reason, aside.name)
+
+    def _replay_error(self, reason: str) -> ReplayCacheError:
+        return ReplayCacheError(f"{self.path} is damaged ({reason}); its recorded answers cannot be replayed: "
+                                "restore the file, or re-record with a live backend and --cache")
+
+    def _failed(self, exc: sqlite3.DatabaseError) -> None:
+        """Damage found mid-run: replay cannot go on; a recording run stops using the cache (warned once)."""
+        if not _is_damage(exc):
+            raise exc
+        if self.read_only:
+            raise self._replay_error(str(exc)) from None
+        if self._broken is None:
+            log.warning("response cache %s became unreadable (%s); the run goes on without caching", self.path, exc)
+        self._broken = str(exc)
 
     def get(self, key: str) -> ChatResult | None:
         return self.get_many([key]).get(key)
@@ -65,36 +160,73 @@ class ResponseCache:
     def get_many(self, keys: Iterable[str]) -> dict[str, ChatResult]:
         wanted = list(dict.fromkeys(keys))
         found: dict[str, ChatResult] = {}
+        if self._broken is not None:
+            return found
         with self._lock:
-            for start in range(0, len(wanted), 500):  # stay under sqlite's bound-variable limit
-                chunk = wanted[start : start + 500]
-                marks = ",".join("?" * len(chunk))
-                rows = self._db.execute(
-                    "SELECT key, model, texts, prompt_tokens, completion_tokens, latency_s "
-                    f"FROM responses WHERE key IN ({marks})",
-                    chunk,
-                ).fetchall()
-                for key, model, texts, n_prompt, n_completion, latency in rows:
-                    found[key] = ChatResult(
-                        texts=json.loads(texts), prompt_tokens=n_prompt, completion_tokens=n_completion,
-                        latency_s=latency, cached=True, model=model,
-                    )
+            try:
+                for start in range(0, len(wanted), 500):  # stay under sqlite's bound-variable limit
+                    chunk = wanted[start : start + 500]
+                    marks = ",".join("?" * len(chunk))
+                    rows = self._db.execute(
+                        "SELECT key, model, texts, prompt_tokens, completion_tokens, latency_s "
+                        f"FROM responses WHERE key IN ({marks})",
+                        chunk,
+                    ).fetchall()
+                    for key, model, texts, n_prompt, n_completion, latency in rows:
+                        found[key] = ChatResult(
+                            texts=json.loads(texts), prompt_tokens=n_prompt, completion_tokens=n_completion,
+                            latency_s=latency, cached=True, model=model,
+                        )
+            except sqlite3.DatabaseError as exc:
+                self._failed(exc)
+                return {}
         return found
 
-    def put(self, key: str, result: ChatResult, model_id: str, role: str = "") -> None:
-        self.put_many([(key, result, model_id, role)])
+    def put(self, key: str, result: ChatResult, model_id: str, role: str = "",
+            request: ChatRequest | None = None) -> None:
+        self.put_many([(key, result, model_id, role)], requests={key: request} if request else None)
 
-    def put_many(self, entries: Iterable[tuple[str, ChatResult, str, str]]) -> None:
-        """Write results (first write of a key wins: a recorded answer is never silently replaced)."""
+    def put_many(self, entries: Iterable[tuple[str, ChatResult, str, str]],
+                 requests: Mapping[str, ChatRequest] | None = None) -> None:
+        """Write results and their requests in one transaction (first write of a key wins: a recorded
+        answer is never silently replaced)."""
         now = time.time()
         rows = [
             (key, model_id, role, json.dumps(r.texts, ensure_ascii=False), r.prompt_tokens, r.completion_tokens,
              r.latency_s, now)
             for key, r, model_id, role in entries
         ]
+        asked = [(key, json.dumps(request_record(req), ensure_ascii=False, default=str))
+                 for key, req in (requests or {}).items()]
+        if self._broken is not None:
+            return
         with self._lock:
-            self._db.executemany("INSERT OR IGNORE INTO responses VALUES (?, ?, ?, ?, ?, ?, ?, ?)", rows)
-            self._db.commit()
+            try:
+                self._db.executemany("INSERT OR IGNORE INTO responses VALUES (?, ?, ?, ?, ?, ?, ?, ?)", rows)
+                self._db.executemany("INSERT OR IGNORE INTO requests VALUES (?, ?)", asked)
+                self._db.commit()
+            except sqlite3.DatabaseError as exc:
+                self._failed(exc)
+
+    def get_request(self, key: str) -> dict[str, Any] | None:
+        """The recorded request of a response key (see `request_record`), or None (an older cache, or
+        an answer written without its request)."""
+        with self._lock:
+            try:
+                row = self._db.execute("SELECT request FROM requests WHERE key = ?", (key,)).fetchone()
+            except sqlite3.OperationalError:  # a read-only cache made before the requests table
+                return None
+        return json.loads(row[0]) if row else None
+
+    def keys(self, *, model: str | None = None, role: str | None = None) -> list[str]:
+        """Response keys in the order they were recorded, optionally of one model and/or role."""
+        query, args = "SELECT key FROM responses WHERE 1=1", []
+        for column, value in (("model", model), ("role", role)):
+            if value is not None:
+                query += f" AND {column} = ?"
+                args.append(value)
+        with self._lock:
+            return [k for (k,) in self._db.execute(query + " ORDER BY rowid", args).fetchall()]
 
     def models(self) -> dict[str, int]:
         """model id -> number of recorded responses."""
@@ -141,8 +273,9 @@ class CachingBackend:
         if missing:
             answers = await self.inner.complete(list(missing.values()))
             self.cache.put_many(
-                (key, result, self.model_id, request.role)
-                for (key, request), result in zip(missing.items(), answers, strict=True)
+                [(key, result, self.model_id, request.role)
+                 for (key, request), result in zip(missing.items(), answers, strict=True)],
+                requests=missing,
             )
             found.update(zip(missing, answers, strict=True))
         self.misses += len(missing)

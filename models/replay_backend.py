@@ -3,7 +3,9 @@
 A run made with `--cache` records every answer in `cache.sqlite` keyed by (model id, messages,
 sampling, schema, template options). Replaying with the same model id returns the very same texts,
 token counts and latencies, with no weights, no GPU and no network. A request that was never recorded
-is an error naming its key and the model, never a silent fallback to some other answer.
+is an error naming its key and the model, never a silent fallback to some other answer. A damaged
+cache file is a `ReplayCacheError` (one line naming the file), never moved aside: here it is the only
+copy of the answers.
 
 Ways to get one:
 - `make_backend("replay:hf:smollm2-135m-instruct", cache="runs/x")`: the model id of that spec;
@@ -21,12 +23,12 @@ from pathlib import Path
 from typing import Any
 
 from models.base import BackendError, ChatRequest, ChatResult, ModelNotFoundError, request_key
-from models.cache import ResponseCache, resolve_cache_path
+from models.cache import ReplayCacheError, ResponseCache, resolve_cache_path
 from models.specs import ModelSpec
 
 REPLAY_CACHE_ENV = "WORLDMIND_REPLAY_CACHE"  # where `worldmind run --planner replay:...` finds the cache
 
-__all__ = ["ReplayBackend"]
+__all__ = ["ReplayBackend", "ReplayCacheError"]
 
 
 class ReplayBackend:

@@ -126,7 +126,7 @@ def make_backend(spec: str | ModelSpec, **options: Any) -> ChatBackend:
     `replay`, `replay:<spec address>` and `replay:<model id>` (with `cache=PATH`) build a replay backend
     over a recorded response cache; see models/replay_backend.py.
     """
-    from worldmind_local.registry import BACKENDS
+    from models.registry import BACKENDS
 
     set_offline_env()
     if isinstance(spec, str) and (spec == "replay" or spec.startswith("replay:")):

@@ -174,7 +174,7 @@ def _sample_digest(path: Path, chunk: int = 1 << 20) -> str:
 
 
 def _build_cached(spec: ModelSpec, builder: str) -> Path:
-    from worldmind_local.registry import load_target
+    from models.registry import load_target
 
     build = load_target(builder)
     version = getattr(importlib.import_module(builder.partition(":")[0]), "BUILD_VERSION", 0)

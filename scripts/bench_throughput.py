@@ -77,11 +77,13 @@ MAX_PLAN_ACTIONS: int | None = None
 
 def _streams(n_streams: int, episodes: int, model: str, max_tokens: int) -> list[Any]:
     from worldmind_local.registry import BENCHMARKS
-    from worldmind_local.runner import MethodOptions, StreamSpec
+    from worldmind_local.runner import StreamSpec
 
     subsets = BENCHMARKS.get(BENCHMARK).subsets
-    opts = MethodOptions(planner_max_tokens=max_tokens, max_plan_actions=MAX_PLAN_ACTIONS, judge_max_tokens=min(max_tokens, 128),
-                         reflector_max_tokens=min(max_tokens, 160), distiller_max_tokens=min(max_tokens, 160))
+    opts: dict[str, Any] = {"planner_max_tokens": max_tokens, "judge_max_tokens": min(max_tokens, 128),
+                            "reflector_max_tokens": min(max_tokens, 160), "distiller_max_tokens": min(max_tokens, 160)}
+    if MAX_PLAN_ACTIONS is not None:
+        opts["max_plan_actions"] = MAX_PLAN_ACTIONS
     return [
         StreamSpec(benchmark=BENCHMARK, subset=subsets[i % len(subsets)], planner=model, seed=i // len(subsets),
                    limit=episodes, options=opts)

@@ -12,7 +12,7 @@ when somebody reads it (the judge reads one per verified action, not one per ste
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
@@ -25,6 +25,8 @@ __all__ = [
     "BenchmarkAdapter",
     "TaskDataError",
     "UnknownActionError",
+    "ExampleAction",
+    "WorkedExample",
 ]
 
 
@@ -133,6 +135,31 @@ class StepResult:
     info: dict[str, Any] = field(default_factory=dict)
 
 
+@dataclass(frozen=True, slots=True)
+class ExampleAction:
+    """One action of a worked in-context example: the id in that example's own action list, the
+    action's name, the state the agent should predict after it (the skip string when the target is
+    not grounded yet), and the env feedback it received."""
+
+    action_id: int
+    action_name: str
+    predicted_state: str
+    feedback: str
+
+
+@dataclass(frozen=True, slots=True)
+class WorkedExample:
+    """A few-shot example built from an expert plan run through the twin (never from an evaluated
+    episode). Methods render it in their own format: WorldMind shows `predicted_state`, EB's ReAct
+    format shows `reasoning` and `language_plan` and the actions without predictions."""
+
+    task_id: str
+    instruction: str
+    reasoning: str
+    language_plan: str
+    actions: tuple[ExampleAction, ...]
+
+
 @runtime_checkable
 class Env(Protocol):
     """One simulator backend of one benchmark. `actions` is valid after `reset` (the id is the position)."""
@@ -160,6 +187,9 @@ class BenchmarkAdapter(Protocol):
     name: str
     subsets: tuple[str, ...]
     default_top_k: int
+    default_n_shots: int
+    unusable_output: str            # "invalid" | "random": EB's policy for unusable planner output
+    text_stand_in_for_image: bool   # text planners see the env's text description (EB-Navigation)
 
     def load_tasks(self, data_dir: Path, subset: str) -> list[Task]:
         """EmbodiedBench's episodes of one subset, in EmbodiedBench's order. Raises TaskDataError."""
@@ -175,6 +205,15 @@ class BenchmarkAdapter(Protocol):
         ...
 
     def has_data(self, data_dir: Path) -> bool: ...
+
+    def worked_examples(
+        self, n: int, *, data_dir: Path | None = None, exclude: Collection[str] = ()
+    ) -> list[WorkedExample]:
+        """`min(n, pool size)` few-shot examples (`default_n_shots` is the official count), the same
+        for the same arguments: expert plans run on the twin, from the data pack's tasks where
+        `data_dir` holds it, else from a generated suite of a seed no evaluation uses. An example
+        whose task id or instruction is in `exclude` (the evaluated episode's) is never returned."""
+        ...
 
 
 def plan_names(actions: Sequence[str], ids: Sequence[int]) -> list[str]:

@@ -49,17 +49,23 @@ def _tokens(rec: Mapping[str, Any], role: str) -> float:
     return _num(tok)
 
 
+def _stat(rec: Mapping[str, Any], key: str) -> Any:
+    """A method counter: from `method_stats` (current records) or the top level (older records)."""
+    stats = rec.get("method_stats") or {}
+    return stats.get(key, rec.get(key))
+
+
 def stream_metrics(records: Iterable[Mapping[str, Any]]) -> dict[str, Any]:
     recs = list(records)
     n = len(recs)
     success = [100.0 * bool(r.get("success")) for r in recs]
     gc = [100.0 * _num(r.get("progress")) for r in recs]
     taxonomy = Counter(str(r.get("taxonomy") or "error") for r in recs)
-    reflections = sum(_num(r.get("reflections")) for r in recs)
-    distillations = sum(_num(r.get("distillations")) for r in recs)
+    reflections = sum(_num(_stat(r, "reflections")) for r in recs)
+    distillations = sum(_num(_stat(r, "distillations")) for r in recs)
     retrieval = [float(s) for r in recs for s in (r.get("retrieval_seconds") or [])]
     steps = [_num(r.get("steps")) for r in recs]
-    judge_calls = sum(_num(r.get("judge_calls")) for r in recs)
+    judge_calls = sum(_num(_stat(r, "judge_calls")) for r in recs)
     out: dict[str, Any] = {
         "episodes": n,
         "SR": round(float(np.mean(success)), 2) if n else None,
@@ -71,8 +77,8 @@ def stream_metrics(records: Iterable[Mapping[str, Any]]) -> dict[str, Any]:
         },
         "mean_steps": round(float(np.mean(steps)), 2) if n else None,
         "judge_calls": int(judge_calls),
-        "judge_mismatches": int(sum(_num(r.get("judge_mismatches")) for r in recs)),
-        "judge_unparseable": int(sum(_num(r.get("judge_unparseable")) for r in recs)),
+        "judge_mismatches": int(sum(_num(_stat(r, "judge_mismatches")) for r in recs)),
+        "judge_unparseable": int(sum(_num(_stat(r, "judge_unparseable")) for r in recs)),
         "reflections": int(reflections),
         "tokens_per_reflection": round(sum(_tokens(r, "reflector") for r in recs) / reflections, 1)
         if reflections else None,
@@ -81,9 +87,14 @@ def stream_metrics(records: Iterable[Mapping[str, Any]]) -> dict[str, Any]:
         if distillations else None,
         "tokens_total": {
             role: int(sum(_tokens(r, role) for r in recs))
-            for role in ("planner", "judge", "reflector", "distiller", "summarizer")
+            for role in sorted({"planner", *(k for r in recs for k in (r.get("tokens") or {}))})
         },
         "retrieval_ms_per_step": round(1000 * float(np.mean(retrieval)), 4) if retrieval else None,
+        "observation": sorted({str(r.get("observation")) for r in recs if r.get("observation")}),
+        "calls_per_episode": {
+            role: round(n / len(recs), 3) for role, n in sorted(Counter(
+                c.get("role") for r in recs for c in (r.get("calls") or [])).items())
+        } if recs else {},
         "experience_kept": int(
             sum(1 for r in recs for e in (r.get("experience") or []) if e.get("kept"))
         ),

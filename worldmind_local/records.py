@@ -1,11 +1,12 @@
 """What `episodes.jsonl` holds: one `EpisodeRecord` per finished episode, with every step and plan.
 
 Records are pydantic models so a run can be loaded, validated and diffed (`EpisodeRecord.model_validate`
-on a line of episodes.jsonl). Field names are part of the run-folder format: `worldmind_local.metrics`
-reads `success`, `progress`, `taxonomy`, `steps`, `tokens`, `reflections`, `distillations`,
-`judge_*`, `retrieval_seconds` and `experience[*].kept`; the runner reads `index` and replays
-`experience` into the stream memory on resume, so each experience item is a full ExperienceEntry dict
-(embeddings included) plus `kept`.
+on a line of episodes.jsonl). `EpisodeRecord` holds what every method has (the task, the outcome, every
+plan, step and model call, tokens per role); what only one method counts (WorldMind's judge verdicts,
+reflections, distillations) lives in `method_stats`, a dict written from that method's own pydantic
+model. `experience` lists the entries the episode produced, WITHOUT embeddings (the stream's memory
+dataset holds the vectors) plus `kept` (the runner's commit decision). `calls` lists every model call
+with its request key, so any prompt can be read back from the run's cache (`worldmind show`).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ __all__ = [
     "EpisodeRecord",
     "taxonomy_label",
     "role_token_map",
+    "CallRecord",
 ]
 
 # Why an episode ended. The env reports the first three; the loop adds the rest.
@@ -33,6 +35,19 @@ END_REASONS = (
 TAXONOMY = ("success", "invalid_action_end", "step_limit", "wrong_termination", "error")
 
 _ROLES = ("planner", "judge", "reflector", "distiller", "summarizer")
+
+
+class CallRecord(BaseModel):
+    """One model call: its place in the episode (`key`), its role, and the cache key of its request."""
+
+    model_config = ConfigDict(extra="forbid")
+    key: str
+    role: str
+    request: str                                # models.base.request_key(model_id, request)
+    model: str = ""
+    prompt_tokens: int = 0
+    completion_tokens: int = 0
+    latency_s: float = 0.0
 
 
 class TokenCount(BaseModel):
@@ -65,11 +80,9 @@ class PlanRecord(BaseModel):
     n_actions: int = 0
     error: str | None = None                    # why the output was malformed
     raw: str | None = None                      # the raw output, kept only when it could not be used
-    retrieved_process: list[str] = Field(default_factory=list)
-    retrieved_goal: list[str] = Field(default_factory=list)
-    retrieval_seconds: float = 0.0
     tokens: TokenCount = Field(default_factory=TokenCount)
     latency_s: float = 0.0
+    extra: dict[str, Any] = Field(default_factory=dict)   # the method's part: retrieved ids, candidates, ...
 
 
 class StepRecord(BaseModel):
@@ -83,7 +96,7 @@ class StepRecord(BaseModel):
     action_id: int
     action_name: str
     planned_name: str | None = None             # the name the planner wrote, when it differs
-    substituted: bool = False                   # EB-Navigation: a random action stood in for an unusable one
+    substituted: bool = False                   # EB-Navigation: a random action stood in for an unusable output
     feedback: str
     predicted_state: str | None = None
     skipped: bool = False                       # prediction is (or cascades from) the skip string
@@ -125,30 +138,30 @@ class EpisodeRecord(BaseModel):
     end_reason: str = "error"
     taxonomy: str = "error"
     error: str | None = None
+    observation: str = "none"                   # what the planner was shown: image|none|description|symbolic
     # model usage
     tokens: dict[str, TokenCount] = Field(default_factory=role_token_map)
     latency_s: dict[str, float] = Field(default_factory=dict)
+    calls: list[CallRecord] = Field(default_factory=list)
     planner_calls: int = 0
     planner_output_errors: int = 0              # EB's planner_output_error: outputs that were not usable JSON
     empty_plans: int = 0
-    judge_calls: int = 0
-    judge_mismatches: int = 0
-    judge_unparseable: int = 0
-    reflections: int = 0
-    reflection_tokens: list[int] = Field(default_factory=list)
-    reflector_unparseable: int = 0
-    distillations: int = 0
-    distillation_tokens: list[int] = Field(default_factory=list)
-    distiller_unparseable: int = 0
-    summarizer_calls: int = 0
-    # memory
-    retrieval_seconds: list[float] = Field(default_factory=list)   # one per planner call
+    # memory (methods with a global memory)
+    retrieval_seconds: list[float] = Field(default_factory=list)   # one per retrieval
     retrieved_ids: list[str] = Field(default_factory=list)         # distinct ids, first-seen order
-    experience: list[dict[str, Any]] = Field(default_factory=list)
+    experience: list[dict[str, Any]] = Field(default_factory=list)  # entries without embeddings, + kept
+    method_stats: dict[str, Any] = Field(default_factory=dict)     # the method's own counters
     # the trajectory
     plans: list[PlanRecord] = Field(default_factory=list)
     trajectory: list[StepRecord] = Field(default_factory=list)
     wall_seconds: float = 0.0
+
+    def calls_by_role(self) -> dict[str, int]:
+        """How many model calls of each role the episode made (the paper's overhead table)."""
+        out: dict[str, int] = {}
+        for call in self.calls:
+            out[call.role] = out.get(call.role, 0) + 1
+        return out
 
     def add_tokens(self, role: str, prompt: int, completion: int, latency_s: float) -> None:
         self.tokens.setdefault(role, TokenCount()).add(prompt, completion)

@@ -50,11 +50,23 @@ def replay_episode(env: Env, task: Task, actions: list[str]) -> dict[str, Any]:
     return out
 
 
+MAX_PLAN_LINE_CHARS = 4_000_000  # a plan of ~100k actions; longer lines are refused, not parsed
+
+
 def _parse(line: str, lineno: int) -> tuple[str, int, list[str]]:
+    """Total: any line gives (subset, index, actions) or a PlanError (never RecursionError, the
+    int-digit ValueError or a UnicodeError), bounded in size and nesting."""
+    from worldmind_local.agent.jsonparse import parse_json  # lazy: the agent package is not light
+    from worldmind_local.agent.plan import PlanParseError
+
     try:
-        obj = json.loads(line)
-    except json.JSONDecodeError as exc:
-        raise PlanError(f"line {lineno}: not valid JSON ({exc.msg})") from None
+        line.encode("utf-8")
+    except UnicodeEncodeError:  # undecodable bytes arrive as surrogate escapes (see cli/replay.py)
+        raise PlanError(f"line {lineno}: not UTF-8 text") from None
+    try:
+        obj = parse_json(line, max_chars=MAX_PLAN_LINE_CHARS)
+    except PlanParseError as exc:
+        raise PlanError(f"line {lineno}: {exc}") from None
     if not isinstance(obj, dict):
         raise PlanError(f"line {lineno}: expected an object with subset, index and actions")
     subset, index, actions = obj.get("subset"), obj.get("index"), obj.get("actions")

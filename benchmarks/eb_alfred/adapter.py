@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
@@ -10,7 +11,7 @@ from benchmarks.eb_alfred.data import SUBSETS, episode, load_pack, pack_dir
 from benchmarks.eb_alfred.expert import ExpertError, expert_plan
 from benchmarks.eb_alfred.generator import generate_tasks
 from benchmarks.eb_alfred.scene import cached_scene
-from worldmind_local.env import Env, Task, TaskDataError
+from worldmind_local.env import Env, Task, TaskDataError, WorkedExample
 
 __all__ = ["AlfredAdapter"]
 
@@ -20,7 +21,14 @@ class AlfredAdapter:
 
     name = "eb_alfred"
     subsets: tuple[str, ...] = SUBSETS
-    default_top_k = 2
+    default_top_k = 2  # official configs eb-alf.yaml
+    default_n_shots = 10  # official configs eb-alf.yaml
+    # EB's evaluator for unusable planner output: "invalid" (one invalid action, no env step; empty plan
+    # ends the episode) or "random" (one random action; out-of-range ids go to the env).
+    unusable_output = "invalid"
+    # EB-Navigation has no language-only mode: its text description stands in for the image for
+    # text-only planners. EB-ALFRED/EB-Habitat text planners see no state at all (EB's language_only).
+    text_stand_in_for_image = False
 
     def load_tasks(self, data_dir: Path, subset: str) -> list[Task]:
         pack = load_pack(Path(data_dir))
@@ -61,6 +69,14 @@ class AlfredAdapter:
 
     def has_data(self, data_dir: Path) -> bool:
         return (pack_dir(Path(data_dir)) / "splits.json").is_file()
+
+    def worked_examples(
+        self, n: int, *, data_dir: Path | None = None, exclude: Collection[str] = ()
+    ) -> list[WorkedExample]:
+        """`min(n, pool size)` few-shot examples: expert plans run on the twin (examples.py)."""
+        from benchmarks.eb_alfred.examples import worked_examples
+
+        return worked_examples(n, data_dir=data_dir, exclude=exclude)
 
 
 _PLANS: dict[str, tuple[object, tuple[str, ...] | None]] = {}

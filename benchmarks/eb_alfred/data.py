@@ -2,13 +2,14 @@
 
 Files read: `splits.json` (the six subsets, 50 episodes each, in EB's order), `tasks.json` (one
 ALFRED task record per `<task>#<repeat_idx>`) and `scenes/trial_initial_states.json` (the exact
-initial facts of each ALFRED trial). A malformed file raises TaskDataError naming the file and the
-field; the parsed pack is cached per path and modification time.
+initial facts of each ALFRED trial). A malformed file (not UTF-8, not JSON, a NaN or out-of-range
+position) raises TaskDataError naming the file, the record and the field; the parsed pack is cached
+per path and modification time.
 """
 
 from __future__ import annotations
 
-import json
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
@@ -16,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.eb_alfred.goals import TASK_TYPES
+from worldmind_local.data import finite_number, read_json_file
 from worldmind_local.env import TaskDataError
 
 __all__ = ["AlfredPack", "load_pack", "pack_dir", "SUBSETS"]
@@ -42,10 +44,7 @@ class AlfredPack:
 def _read_json(path: Path) -> Any:
     if not path.is_file():
         raise FileNotFoundError(f"{path} not found (the EB-ALFRED data pack layout is described in the README)")
-    try:
-        return json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise TaskDataError(path, "<file>", f"not valid JSON ({exc})") from exc
+    return read_json_file(path)
 
 
 def _require(cond: bool, path: Path, field: str, problem: str) -> None:
@@ -79,8 +78,9 @@ def check_record(path: Path | str, key: str, rec: Any) -> None:
     scene = rec.get("scene")
     _require(isinstance(scene, Mapping), p, f"{key}.scene", "must be an object")
     ia = scene.get("init_action")
-    _require(isinstance(ia, Mapping) and all(isinstance(ia.get(c), (int, float)) for c in ("x", "z")), p,
-             f"{key}.scene.init_action", "must have numeric x and z")
+    _require(isinstance(ia, Mapping), p, f"{key}.scene.init_action", "must have numeric x and z")
+    for c in ("x", "z"):
+        finite_number(p, f"{key}.scene.init_action.{c}", ia.get(c))
     _require(isinstance(scene.get("object_toggles", []), list), p, f"{key}.scene.object_toggles", "must be a list")
     plan = rec.get("plan")
     _require(isinstance(plan, Mapping) and isinstance(plan.get("high_pddl"), list), p, f"{key}.plan.high_pddl", "must be a list")
@@ -101,9 +101,10 @@ def check_facts(path: Path | str, trial: str, facts: Any) -> None:
             _require(isinstance(rec, Mapping) and isinstance(rec.get("type"), str), p, f"{trial}.{name}.{oid}.type", "must be a string")
             _require(len(oid.split("|")) >= 4, p, f"{trial}.{name}.{oid}", "objectId must look like 'Type|x|y|z'")
             try:
-                [float(v) for v in oid.split("|")[1:4]]
+                finite = all(math.isfinite(float(v)) for v in oid.split("|")[1:4])
             except ValueError:
-                raise TaskDataError(p, f"{trial}.{name}.{oid}", "objectId coordinates are not numbers") from None
+                finite = False
+            _require(finite, p, f"{trial}.{name}.{oid}", "objectId coordinates are not finite numbers")
     for name in ("in_receptacle", "in_receptacle_derived"):
         pairs = facts.get(name, [])
         _require(isinstance(pairs, list) and all(isinstance(x, list) and len(x) == 2 for x in pairs), p,

@@ -9,10 +9,11 @@ simulator), ``oracle`` (plans from episode data), ``generator`` (the procedural 
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
-from worldmind_local.env import Env, Task
+from worldmind_local.env import Env, Task, WorkedExample
 
 from .data import SUBSETS, goal_kind, load_episodes, subset_path
 
@@ -24,7 +25,14 @@ class HabitatAdapter:
 
     name = "eb_habitat"
     subsets: tuple[str, ...] = SUBSETS
-    default_top_k = 2
+    default_top_k = 1  # official configs eb-hab.yaml
+    default_n_shots = 10  # official configs eb-hab.yaml
+    # EB's evaluator for unusable planner output: "invalid" (one invalid action, no env step; empty plan
+    # ends the episode) or "random" (one random action; out-of-range ids go to the env).
+    unusable_output = "invalid"
+    # EB-Navigation has no language-only mode: its text description stands in for the image for
+    # text-only planners. EB-ALFRED/EB-Habitat text planners see no state at all (EB's language_only).
+    text_stand_in_for_image = False
 
     def load_tasks(self, data_dir: Path, subset: str) -> list[Task]:
         """The subset's 50 episodes in EmbodiedBench's order; `expert_plan` is the oracle plan."""
@@ -74,6 +82,14 @@ class HabitatAdapter:
 
     def has_data(self, data_dir: Path) -> bool:
         return subset_path(Path(data_dir), SUBSETS[0]).is_file()
+
+    def worked_examples(
+        self, n: int, *, data_dir: Path | None = None, exclude: Collection[str] = ()
+    ) -> list[WorkedExample]:
+        """`min(n, pool size)` few-shot examples: oracle plans run on the twin (examples.py)."""
+        from benchmarks.eb_habitat.examples import worked_examples
+
+        return worked_examples(n, data_dir=data_dir, exclude=exclude)
 
 
 ADAPTER = HabitatAdapter()

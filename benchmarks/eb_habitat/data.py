@@ -12,6 +12,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from worldmind_local.data import read_json_file
 from worldmind_local.env import TaskDataError
 
 from .predicates import PredicateError, ground_expr, ground_pred
@@ -44,13 +45,11 @@ def load_episodes(data_dir: Path, subset: str) -> list[dict[str, Any]]:
         raise ValueError(f"unknown EB-Habitat subset {subset!r}; known: {', '.join(SUBSETS)}")
     path = subset_path(data_dir, subset)
     try:
-        raw = json.loads(path.read_text(encoding="utf-8"))
+        raw = read_json_file(path)  # not UTF-8, bad JSON, absurd nesting or numbers: TaskDataError
     except FileNotFoundError as exc:
         raise TaskDataError(
             path, "<file>", "missing (expected the JSON decode of the subset's pickle)"
         ) from exc
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise TaskDataError(path, "<file>", f"cannot read JSON: {exc}") from exc
     if not isinstance(raw, dict) or not isinstance(raw.get("episodes"), list):
         raise TaskDataError(path, "episodes", "expected an object with an 'episodes' list")
     episodes = raw["episodes"]

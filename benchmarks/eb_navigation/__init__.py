@@ -9,11 +9,12 @@ real EBNavigationEnv). Submodules are imported on first use.
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
 from benchmarks.eb_navigation.data import SUBSETS, has_any_subset
-from worldmind_local.env import Env, Task
+from worldmind_local.env import Env, Task, WorkedExample
 
 __all__ = ["ADAPTER", "NavigationAdapter"]
 
@@ -23,7 +24,14 @@ class NavigationAdapter:
 
     name = "eb_navigation"
     subsets: tuple[str, ...] = SUBSETS
-    default_top_k = 2
+    default_top_k = 2  # official configs eb-nav.yaml
+    default_n_shots = 3  # official configs eb-nav.yaml
+    # EB's evaluator for unusable planner output: "invalid" (one invalid action, no env step; empty plan
+    # ends the episode) or "random" (one random action; out-of-range ids go to the env).
+    unusable_output = "random"
+    # EB-Navigation has no language-only mode: its text description stands in for the image for
+    # text-only planners. EB-ALFRED/EB-Habitat text planners see no state at all (EB's language_only).
+    text_stand_in_for_image = True
 
     def load_tasks(self, data_dir: Path, subset: str) -> list[Task]:
         from benchmarks.eb_navigation.tasks import load_tasks
@@ -51,6 +59,14 @@ class NavigationAdapter:
 
     def has_data(self, data_dir: Path) -> bool:
         return has_any_subset(Path(data_dir))
+
+    def worked_examples(
+        self, n: int, *, data_dir: Path | None = None, exclude: Collection[str] = ()
+    ) -> list[WorkedExample]:
+        """`min(n, pool size)` few-shot examples: shortest plans run on the twin (examples.py)."""
+        from benchmarks.eb_navigation.examples import worked_examples
+
+        return worked_examples(n, data_dir=data_dir, exclude=exclude)
 
 
 ADAPTER = NavigationAdapter()

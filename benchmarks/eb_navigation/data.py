@@ -2,6 +2,8 @@
 
 Every record is checked field by field, so a malformed file fails with the file and the field named
 (`base.json: field 'tasks[3].agentPose.rotation': ...`), never with a KeyError deep inside the twin.
+Numbers must be finite floats; a record's `scene` names a file of the data pack, so it must be a plain
+floor-plan name that stays inside the pack (never a path of its own).
 Optional extras are read from the same data pack: `eb_alfred/scenes/FloorPlanN.json` holds exact
 static objects of the same AI2-THOR floor plans (see geometry.py for how they are used).
 """
@@ -9,12 +11,12 @@ static objects of the same AI2-THOR floor plans (see geometry.py for how they ar
 from __future__ import annotations
 
 import copy
-import json
 import math
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+from worldmind_local.data import data_file, finite_number, read_json_file
 from worldmind_local.env import TaskDataError
 
 __all__ = [
@@ -46,9 +48,7 @@ def has_any_subset(data_dir: Path) -> bool:
 
 
 def _number(path: Path, field: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise TaskDataError(path, field, f"expected a finite number, got {value!r}")
-    return float(value)
+    return finite_number(path, field, value)  # NaN, inf and ints past float range included
 
 
 def _string(path: Path, field: str, value: Any) -> str:
@@ -75,6 +75,7 @@ def validate_record(path: Path, i: int, rec: Any) -> None:
         if key not in rec:
             raise TaskDataError(path, f"{where}.{key}", "missing")
         _string(path, f"{where}.{key}", rec[key])
+    data_file(path.parent.parent / "eb_alfred" / "scenes", rec["scene"], ".json", path, f"{where}.scene")
     if "target_position" not in rec:
         raise TaskDataError(path, f"{where}.target_position", "missing")
     _xyz(path, f"{where}.target_position", rec["target_position"])
@@ -112,14 +113,13 @@ def parse_object_id(object_id: str) -> tuple[str, float, float, float] | None:
         x, y, z = (float(p) for p in parts[1:4])
     except ValueError:
         return None
+    if not all(math.isfinite(v) for v in (x, y, z)):
+        return None
     return parts[0], x, y, z
 
 
 def _read_json(path: Path) -> Any:
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise TaskDataError(path, "<file>", f"not valid JSON ({exc})") from exc
+    return read_json_file(path)
 
 
 @lru_cache(maxsize=32)
@@ -157,7 +157,7 @@ def load_alfred_scene(data_dir: Path, scene: str) -> dict[str, Any] | None:
     Only exact facts are returned: static objects as (objectId, type, x, y, z), positions read from the
     ids, and ALFRED's agent interaction poses as (x, z) (where an agent stood, so known free floor).
     """
-    path = Path(data_dir) / "eb_alfred" / "scenes" / f"{scene}.json"
+    path = data_file(Path(data_dir) / "eb_alfred" / "scenes", scene, ".json", Path(data_dir), "scene")
     if not path.is_file():
         return None
     data = _read_json(path)

@@ -34,7 +34,8 @@ def test_taxonomy(success: bool, end: str, label: str) -> None:
 def _record() -> EpisodeRecord:
     rec = EpisodeRecord(task_id="t", benchmark="eb_habitat", subset="base", index=4, instruction="Move the bowl.",
                         task_type="rearrange", method="worldmind", success=True, progress=1.0, steps=2,
-                        end_reason="success", taxonomy="success", judge_calls=1, reflections=1, distillations=1,
+                        end_reason="success", taxonomy="success",
+                        method_stats={"judge_calls": 1, "reflections": 1, "distillations": 1},
                         retrieval_seconds=[0.0001, 0.0002])
     rec.add_tokens("reflector", 100, 20, 0.5)
     rec.add_tokens("reflector", 10, 2, 0.25)

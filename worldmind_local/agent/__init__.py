@@ -1,11 +1,12 @@
-"""The WorldMind agent: planner output parsing, prompts, the roles around the planner (StateAbstractor,
-Judge, Reflector, GoalDistiller) and the episode loop that ties them together."""
+"""The agent layer: the generic episode driver (EmbodiedBench's evaluator protocol), planner output
+parsing, prompts, and WorldMind's roles around the planner (StateAbstractor, Judge, Reflector,
+GoalDistiller, ExperienceRefiner) that methods compose."""
 
 from worldmind_local.agent.abstractor import AbstractState, StateAbstractor
 from worldmind_local.agent.calls import ModelCalls, derive_seed
 from worldmind_local.agent.distiller import GoalDistiller, annotate_trajectory
 from worldmind_local.agent.judge import Judge, Verdict, parse_verdict
-from worldmind_local.agent.loop import EpisodeLoop
+from worldmind_local.agent.driver import Episode, EpisodeOutcome, run_episode
 from worldmind_local.agent.plan import (
     SKIP_STRING,
     Plan,
@@ -20,7 +21,9 @@ from worldmind_local.agent.reflector import Reflection, Reflector, parse_rules
 __all__ = [
     "SKIP_STRING",
     "AbstractState",
-    "EpisodeLoop",
+    "Episode",
+    "EpisodeOutcome",
+    "run_episode",
     "GoalDistiller",
     "Judge",
     "ModelCalls",

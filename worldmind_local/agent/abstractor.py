@@ -18,7 +18,7 @@ from worldmind_local.agent.plan import PlanParseError, extract_first_json_object
 from worldmind_local.agent.prompting import load_template, render, user_content
 from worldmind_local.env import Observation
 
-__all__ = ["SUMMARIZER_SCHEMA", "AbstractState", "StateAbstractor", "observation_image"]
+__all__ = ["SUMMARIZER_SCHEMA", "AbstractState", "StateAbstractor", "observation_image", "parse_summary"]
 
 SUMMARIZER_SCHEMA: dict[str, Any] = {
     "type": "object",
@@ -40,6 +40,22 @@ class AbstractState:
     after: str
     source: Literal["text", "vlm"]
     result: ChatResult | None = field(default=None, repr=False)
+
+
+def _state_field(obj: dict[str, Any], key: str, fallback: str) -> str:
+    value = obj.get(key)
+    return value.strip() or fallback if isinstance(value, str) else fallback
+
+
+def parse_summary(text: str, before_text: str, after_text: str) -> tuple[str, str, bool]:
+    """(state before, state after, parsed as JSON). Total: a missing or non-string field falls back to
+    the env's own text, and free text is taken as the description of the after-image."""
+    try:
+        obj = extract_first_json_object(text)
+    except PlanParseError:
+        free = text.strip() if isinstance(text, str) else ""
+        return before_text, free or after_text, False
+    return _state_field(obj, "state_before", before_text), _state_field(obj, "state_after", after_text), True
 
 
 class StateAbstractor:
@@ -73,12 +89,7 @@ class StateAbstractor:
         request = self.calls.request(
             "summarizer", messages, call_key=call_key, max_tokens=self.max_tokens, json_schema=SUMMARIZER_SCHEMA
         )
-        result = await self.calls.ask(request)
-        self.calls.record.summarizer_calls += 1
-        try:
-            obj = extract_first_json_object(result.text)
-            state_before = str(obj.get("state_before") or "").strip() or before.text
-            state_after = str(obj.get("state_after") or "").strip() or after.text
-        except PlanParseError:  # free text: take it as the description of the after-image
-            state_before, state_after = before.text, result.text.strip() or after.text
+        result = await self.calls.ask(request, call_key=call_key)
+        self.calls.stats.summarizer_calls += 1
+        state_before, state_after, _parsed = parse_summary(result.text, before.text, after.text)
         return AbstractState(state_before, state_after, "vlm", result)

@@ -13,8 +13,8 @@ import hashlib
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from models.base import ChatBackend, ChatRequest, ChatResult, Role, Sampling
-from worldmind_local.records import EpisodeRecord
+from models.base import ChatBackend, ChatRequest, ChatResult, Role, Sampling, request_key
+from worldmind_local.records import CallRecord, EpisodeRecord
 
 __all__ = ["derive_seed", "ROLE_FALLBACK", "backend_for", "has_vision", "ModelCalls"]
 
@@ -26,6 +26,7 @@ ROLE_FALLBACK: dict[str, tuple[str, ...]] = {
     "reflector": ("reflector", "judge", "planner"),
     "distiller": ("distiller", "planner"),
     "summarizer": ("summarizer", "judge", "planner"),
+    "refiner": ("refiner", "judge", "planner"),
 }
 
 
@@ -74,6 +75,7 @@ class ModelCalls:
         self.seed = seed
         self.task_index = task_index
         self.temperature = temperature
+        self.stats: Any = None  # the method's counters (e.g. WorldMindStats), for the role helpers
 
     def backend(self, role: str) -> ChatBackend:
         return backend_for(self.models, role)
@@ -86,18 +88,31 @@ class ModelCalls:
         call_key: str,
         max_tokens: int,
         json_schema: dict[str, Any] | None = None,
+        temperature: float | None = None,
+        top_p: float = 1.0,
+        n: int = 1,
     ) -> ChatRequest:
         sampling = Sampling(
-            temperature=self.temperature,
+            temperature=self.temperature if temperature is None else temperature,
             max_tokens=max_tokens,
+            top_p=top_p,
+            n=n,
             seed=derive_seed(self.seed, self.task_index, call_key),
         )
         return ChatRequest(messages=list(messages), sampling=sampling, json_schema=json_schema, role=role)
 
-    async def ask(self, request: ChatRequest) -> ChatResult:
-        results = await self.backend(request.role).complete([request])
+    async def ask(self, request: ChatRequest, *, call_key: str = "") -> ChatResult:
+        """One request; tokens, latency and a CallRecord (with the request's cache key) are booked."""
+        backend = self.backend(request.role)
+        results = await backend.complete([request])
         if len(results) != 1:
             raise RuntimeError(f"{request.role} backend returned {len(results)} results for 1 request")
         result = results[0]
         self.record.add_tokens(request.role, result.prompt_tokens, result.completion_tokens, result.latency_s)
+        model_id = getattr(backend, "model_id", "")
+        self.record.calls.append(CallRecord(
+            key=call_key or f"{request.role}:{len(self.record.calls)}", role=str(request.role),
+            request=request_key(model_id, request), model=model_id, prompt_tokens=result.prompt_tokens,
+            completion_tokens=result.completion_tokens, latency_s=round(result.latency_s, 6),
+        ))
         return result

@@ -80,9 +80,9 @@ class GoalDistiller:
         request = self.calls.request(
             "distiller", messages, call_key=call_key, max_tokens=self.max_tokens, json_schema=DISTILLER_SCHEMA
         )
-        result = await self.calls.ask(request)
+        result = await self.calls.ask(request, call_key=call_key)
         workflow = parse_workflow(result.text)
-        record = self.calls.record
+        record = self.calls.stats
         record.distillations += 1
         record.distillation_tokens.append(result.prompt_tokens + result.completion_tokens)
         record.distiller_unparseable += int(workflow is None)

@@ -65,22 +65,30 @@ class Judge:
         self.max_tokens = max_tokens
 
     async def judge(
-        self, *, action: str, predicted: str, actual: str, feedback: str, call_key: str
+        self, *, predicted: str, actual: str, call_key: str, feedback: str | None = None
     ) -> Verdict:
+        """The paper's validator sees the prediction and the actual state only. `feedback` (an
+        option, off by default) adds the env feedback and a rule that invalid feedback contradicts an
+        assumed change."""
+        section = f"\nEnvironment feedback for the action: {feedback.strip()}\n" if feedback is not None else ""
         user = render(
             load_template("common", "judge_user"),
-            action=action, predicted=predicted.strip(), actual=actual.strip(), feedback=feedback.strip(),
+            predicted=predicted.strip(), actual=actual.strip(), feedback_section=section,
         )
+        system = load_template(self.benchmark, "judge").strip()
+        if feedback is not None:
+            rules_end = system.index("\n\nAnswer with")
+            system = system[:rules_end] + "\n" + load_template("common", "judge_feedback_rule").rstrip() + system[rules_end:]
         messages = [
-            {"role": "system", "content": load_template(self.benchmark, "judge").strip()},
+            {"role": "system", "content": system},
             {"role": "user", "content": user},
         ]
         request = self.calls.request(
             "judge", messages, call_key=call_key, max_tokens=self.max_tokens, json_schema=JUDGE_SCHEMA
         )
-        result = await self.calls.ask(request)
+        result = await self.calls.ask(request, call_key=call_key)
         verdict = parse_verdict(result.text)
-        record = self.calls.record
+        record = self.calls.stats
         record.judge_calls += 1
         record.judge_mismatches += int(not verdict.match)
         record.judge_unparseable += int(verdict.unparseable)

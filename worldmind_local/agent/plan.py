@@ -13,18 +13,19 @@ What happens to an output that cannot be used follows EmbodiedBench's evaluators
   to the planner's history; an empty plan ends the episode; an out-of-range action id truncates the
   plan there (an out-of-range FIRST id makes the whole output one invalid action, not a JSON error).
 - EB-Navigation (`POLICY_RANDOM`): an unparseable output (a JSON error) or an empty plan executes one
-  uniformly random action instead, and the env replaces an out-of-range id by a random action; each
-  consumes a step. Our randomness is seeded, so runs repeat exactly.
+  uniformly random action instead; an out-of-range id goes to the env unchanged, and EB's env answers
+  it by issuing THOR's `Done` (EBNavEnv.py:253-256), as the twin does. Our randomness is seeded, so runs
+  repeat exactly. Which policy a benchmark follows is its adapter's fact (`unusable_output`).
 
 An action id that does not match the name written next to it is executed by id (EB reads only the id).
 """
 
 from __future__ import annotations
 
-import json
-import re
 from dataclasses import dataclass
 from typing import Any, Literal
+
+from worldmind_local.agent.jsonparse import extract_json_object
 
 __all__ = [
     "SKIP_STRING",
@@ -37,7 +38,6 @@ __all__ = [
     "extract_first_json_object",
     "parse_plan",
     "is_skip",
-    "unusable_output_policy",
     "screen_ids",
 ]
 
@@ -46,9 +46,7 @@ SKIP_STRING = "Exploration phase: target not visible, prediction skipped."
 UnusablePolicy = Literal["invalid", "random"]
 POLICY_INVALID: UnusablePolicy = "invalid"
 POLICY_RANDOM: UnusablePolicy = "random"
-_RANDOM_POLICY_BENCHMARKS = frozenset({"eb_navigation"})
 
-_FENCE = re.compile(r"```(?:json|JSON)?")
 _SKIP_NORMAL = " ".join(SKIP_STRING.casefold().rstrip(".").split())
 
 
@@ -107,50 +105,14 @@ def planner_schema(n_actions: int, max_plan_actions: int) -> dict[str, Any]:
     }
 
 
-def _object_end(text: str, start: int) -> int:
-    """Index just past the `{...}` that opens at `start` (strings and escapes respected), or -1."""
-    depth, in_string, escaped = 0, False, False
-    for i in range(start, len(text)):
-        ch = text[i]
-        if in_string:
-            if escaped:
-                escaped = False
-            elif ch == "\\":
-                escaped = True
-            elif ch == '"':
-                in_string = False
-        elif ch == '"':
-            in_string = True
-        elif ch == "{":
-            depth += 1
-        elif ch == "}":
-            depth -= 1
-            if depth == 0:
-                return i + 1
-    return -1
-
-
 def extract_first_json_object(text: str) -> dict[str, Any]:
     """The first balanced JSON object in `text`, ignoring code fences and prose around it.
 
     Models often wrap JSON in ```json fences or add a sentence before it; we accept that (a tolerance
-    EB's plain `json.loads` lacks, the same one the WorldMind authors added). Raises PlanParseError.
+    EB's plain `json.loads` lacks, the same one the WorldMind authors added). Total, linear in the
+    text and bounded (see `jsonparse`): any string gives a dict or PlanParseError, nothing else.
     """
-    cleaned = _FENCE.sub("", text or "")
-    start = cleaned.find("{")
-    while start != -1:
-        end = _object_end(cleaned, start)
-        if end == -1:
-            raise PlanParseError("no complete JSON object (output cut off?)")
-        try:
-            value = json.loads(cleaned[start:end])
-        except json.JSONDecodeError:
-            start = cleaned.find("{", start + 1)
-            continue
-        if isinstance(value, dict):
-            return value
-        start = cleaned.find("{", end)
-    raise PlanParseError("no JSON object in the output")
+    return extract_json_object(text)
 
 
 def is_skip(predicted_state: str | None) -> bool:
@@ -192,15 +154,10 @@ def parse_plan(text: str) -> Plan:
     return Plan(language_plan if isinstance(language_plan, str) else "", tuple(actions))
 
 
-def unusable_output_policy(benchmark: str) -> UnusablePolicy:
-    """EB-Navigation substitutes a random action; the other evaluators count an invalid action."""
-    return POLICY_RANDOM if benchmark in _RANDOM_POLICY_BENCHMARKS else POLICY_INVALID
-
-
 def screen_ids(plan: Plan, n_actions: int, policy: UnusablePolicy) -> tuple[PlannedAction, ...]:
     """The actions to execute. Under the invalid policy the plan stops before the first out-of-range
     id (an empty result then means "one invalid action"); under the random policy every action is
-    kept and the loop substitutes a random one for an out-of-range id at execution time."""
+    kept: an out-of-range id reaches the env as it is."""
     if policy == POLICY_RANDOM:
         return plan.actions
     for i, action in enumerate(plan.actions):

@@ -27,11 +27,13 @@ __all__ = [
     "ROLE_TEMPLATES",
     "TemplateError",
     "load_template",
+    "env_prior",
     "render",
     "action_list",
     "format_history",
     "format_experience",
     "planner_messages",
+    "format_examples",
     "user_content",
 ]
 
@@ -54,6 +56,20 @@ def load_template(folder: str, name: str) -> str:
     if not path.is_file():
         raise TemplateError(f"prompt template prompts/{folder}/{name}.md does not exist")
     return path.read_text(encoding="utf-8").strip() + "\n"
+
+
+@lru_cache(maxsize=16)
+def _env_prior_template(benchmark: str) -> str:
+    if benchmark not in PROMPT_BENCHMARKS:
+        raise TemplateError(f"no env prior for benchmark {benchmark!r}; known: {', '.join(PROMPT_BENCHMARKS)}")
+    path = resources.files(f"benchmarks.{benchmark}.prompts").joinpath("env_prior.md")
+    return path.read_text(encoding="utf-8").strip() + "\n"
+
+
+def env_prior(benchmark: str, *, max_plan_actions: int) -> str:
+    """The benchmark's own description of its actions and planning guidelines
+    (`benchmarks/<benchmark>/prompts/env_prior.md`), shared by every method's planner prompt."""
+    return render(_env_prior_template(benchmark), max_plan_actions=max_plan_actions)
 
 
 def render(template: str, **values: Any) -> str:
@@ -97,32 +113,61 @@ def user_content(text: str, images: Sequence[Any] = ()) -> str | list[dict[str, 
     return [*({"type": "image", "image": img} for img in images), {"type": "text", "text": text}]
 
 
+def format_examples(examples: Sequence[Any], *, with_predictions: bool = True) -> str:
+    """Worked examples (`env.WorkedExample`) as the planner's output format: WorldMind's, with a
+    predicted state per action, or EB's, without."""
+    import json
+
+    blocks = []
+    for i, ex in enumerate(examples, 1):
+        plan = []
+        for a in ex.actions:
+            item: dict[str, Any] = {"action_id": a.action_id, "action_name": a.action_name}
+            if with_predictions:
+                item["predicted_state"] = a.predicted_state
+            plan.append(item)
+        answer = json.dumps({"language_plan": ex.language_plan, "executable_plan": plan}, ensure_ascii=False)
+        feedback = "\n".join(f"  {a.action_name} -> {a.feedback}" for a in ex.actions)
+        blocks.append(f"## Example {i}\nHuman instruction: {ex.instruction}\nOutput: {answer}\n"
+                      f"Env feedback after each action:\n{feedback}")
+    return "\n\n".join(blocks)
+
+
 def planner_messages(
     benchmark: str,
     *,
     actions: Sequence[str],
     instruction: str,
-    observation: str,
     history: Sequence[StepRecord],
-    goal_experience: Sequence[Any] = (),
-    process_experience: Sequence[Any] = (),
+    observation: str | None = None,
+    experience: str = "",
+    examples: str = "",
     max_plan_actions: int = 20,
     image: Any | None = None,
 ) -> list[dict[str, Any]]:
+    """The planner's two messages. `observation` None (EB's language-only mode) leaves the state
+    section out entirely; `experience` and `examples` are pre-rendered blocks ("" leaves them out)."""
     system = render(
         load_template(benchmark, "planner"),
+        env_prior=env_prior(benchmark, max_plan_actions=max_plan_actions),
         max_action_id=len(actions) - 1,
         action_list=action_list(actions),
-        max_plan_actions=max_plan_actions,
         skip_string=SKIP_STRING,
     )
+    if examples:
+        system += "\n\n# Worked examples (from other tasks; their action ids belong to their own episodes)\n" + examples
     history_text = format_history(history, actions)
+    sections = [f"## Human instruction\n{instruction.strip()}"]
+    if experience:
+        sections.append(f"## Knowledge from your World Knowledge Repository\n{experience}")
+    sections.append(f"## What you have done so far in this episode\n{history_text or '(no actions taken yet)'}")
+    if observation is not None:
+        sections.append(f"## What you observe now\n{observation.strip() or '(no description available)'}")
+    elif image is not None:
+        sections.append("## What you observe now\nThe image shows your current view.")
     user = render(
         load_template("common", "planner_user"),
-        instruction=instruction.strip(),
-        experience=format_experience(goal_experience, process_experience) or "(no stored experience yet)",
-        history=history_text or "(no actions taken yet)",
-        observation=observation.strip() or "(no description available)",
+        sections="\n\n".join(sections),
         max_action_id=len(actions) - 1,
         skip_string=SKIP_STRING,
     )

@@ -8,28 +8,29 @@ Experience entry.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from typing import Any
 
 from models.base import ChatResult
 from worldmind_local.agent.calls import ModelCalls
+from worldmind_local.agent.jsonparse import extract_json_list
 from worldmind_local.agent.plan import PlanParseError, extract_first_json_object
 from worldmind_local.agent.prompting import load_template, render
 
 __all__ = ["reflector_schema", "Reflection", "parse_rules", "Reflector", "MAX_RULE_CHARS"]
 
-MAX_RULE_CHARS = 300
+# A bound for constrained decoding only (so a looping model still closes its JSON), far above the
+# official examples (7 of 9 are over 300 characters); parsing never cuts a rule. The real bound is the
+# reflector's token budget.
+MAX_RULE_CHARS = 2000
 _RULE_KEYS = ("rules", "experience_entry", "experience_entries")
 
 
-def reflector_schema(max_rules: int) -> dict[str, Any]:
-    return {
-        "type": "object",
-        "properties": {"rules": {"type": "array", "items": {"type": "string", "maxLength": MAX_RULE_CHARS}, "minItems": 1, "maxItems": max_rules}},
-        "required": ["rules"],
-        "additionalProperties": False,
-    }
+def reflector_schema(max_rules: int | None) -> dict[str, Any]:
+    rules: dict[str, Any] = {"type": "array", "items": {"type": "string", "maxLength": MAX_RULE_CHARS}, "minItems": 1}
+    if max_rules is not None:
+        rules["maxItems"] = max_rules
+    return {"type": "object", "properties": {"rules": rules}, "required": ["rules"], "additionalProperties": False}
 
 
 @dataclass(frozen=True, slots=True)
@@ -40,19 +41,17 @@ class Reflection:
 
 
 def _bare_list(text: str) -> list[Any] | None:
-    start, end = text.find("["), text.rfind("]")
-    if start == -1 or end <= start:
-        return None
+    """A bare JSON list (first `[` to last `]`), or None; total and bounded like every role's parse."""
     try:
-        value = json.loads(text[start:end + 1])
-    except json.JSONDecodeError:
+        return extract_json_list(text)
+    except PlanParseError:
         return None
-    return value if isinstance(value, list) else None
 
 
-def parse_rules(text: str, max_rules: int) -> tuple[tuple[str, ...], bool]:
+def parse_rules(text: str, max_rules: int | None = None) -> tuple[tuple[str, ...], bool]:
     """(rules, unparseable). Accepts `{"rules": [...]}`, the paper's `{"experience_entry": [...]}`, or a
-    bare list. Rules are stripped, de-duplicated, capped in number and length."""
+    bare list. Rules are whitespace-normalised and de-duplicated, never cut; `max_rules` (None: no
+    cap) keeps the first ones."""
     raw: Any = None
     try:
         obj = extract_first_json_object(text)
@@ -65,14 +64,15 @@ def parse_rules(text: str, max_rules: int) -> tuple[tuple[str, ...], bool]:
         return (), True
     rules: list[str] = []
     for item in raw:
-        rule = " ".join(item.split())[:MAX_RULE_CHARS] if isinstance(item, str) else ""
+        rule = " ".join(item.split()) if isinstance(item, str) else ""
         if rule and rule not in rules:
             rules.append(rule)
-    return tuple(rules[:max_rules]), not rules
+    return tuple(rules if max_rules is None else rules[:max_rules]), not rules
 
 
 class Reflector:
-    def __init__(self, benchmark: str, calls: ModelCalls, *, max_tokens: int = 512, max_rules: int = 3) -> None:
+    def __init__(self, benchmark: str, calls: ModelCalls, *, max_tokens: int = 1024,
+                 max_rules: int | None = None) -> None:
         self.benchmark = benchmark
         self.calls = calls
         self.max_tokens = max_tokens
@@ -96,7 +96,8 @@ class Reflector:
             instruction=instruction.strip(), history=history or "(this was the first action)", action=action,
             state_before=state_before.strip(), predicted=predicted.strip(), actual=actual.strip(),
             feedback=feedback.strip(), judge_reason=judge_reason.strip() or "(no reason given)",
-            max_rules=self.max_rules,
+            how_many=(f"at most {self.max_rules} corrective rules" if self.max_rules is not None
+                      else "your corrective rules (one per distinct cause)"),
         )
         messages = [
             {"role": "system", "content": load_template(self.benchmark, "reflector").strip()},
@@ -106,9 +107,9 @@ class Reflector:
             "reflector", messages, call_key=call_key, max_tokens=self.max_tokens,
             json_schema=reflector_schema(self.max_rules),
         )
-        result = await self.calls.ask(request)
+        result = await self.calls.ask(request, call_key=call_key)
         rules, unparseable = parse_rules(result.text, self.max_rules)
-        record = self.calls.record
+        record = self.calls.stats
         record.reflections += 1
         record.reflection_tokens.append(result.prompt_tokens + result.completion_tokens)
         record.reflector_unparseable += int(unparseable)

@@ -19,6 +19,8 @@ SUBCOMMAND_MODULES = (
     "worldmind_local.cli.replay",
     "worldmind_local.cli.tasks",
     "worldmind_local.cli.models",
+    "worldmind_local.cli.methods",
+    "worldmind_local.cli.show",
 )
 
 

@@ -62,11 +62,18 @@ def _plan_lines(args: argparse.Namespace, replayer: Any, subsets: list[str]) -> 
     if args.expert:
         return list(expert_lines(replayer, subsets))
     if args.plans == "-":
-        return sys.stdin.read().splitlines()
+        raw = getattr(sys.stdin, "buffer", None)  # a text-only stdin (a test's StringIO) is read as is
+        return _decode_lines(raw.read()) if raw is not None else sys.stdin.read().splitlines()
     path = Path(args.plans)
     if not path.is_file():
         raise FileNotFoundError(f"plan file {path} not found")
-    return path.read_text().splitlines()
+    return _decode_lines(path.read_bytes())
+
+
+def _decode_lines(data: bytes) -> list[str]:
+    """Lines as text; bytes that are not UTF-8 survive as surrogate escapes, so that line (and only
+    it) becomes an error line naming its number instead of aborting the whole replay."""
+    return data.decode("utf-8", errors="surrogateescape").splitlines()
 
 
 def run(args: argparse.Namespace) -> int:

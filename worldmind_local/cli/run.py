@@ -28,8 +28,9 @@ def register(sub: Any) -> None:
     p.add_argument("--seed", default="0", help="comma list of seeds (one stream per seed)")
     p.add_argument("--memory-from", default=None, metavar="PATH",
                    help="start from this WKR (a memory/ folder of another run): transfer experiments")
-    p.add_argument("--memory-budget", type=int, default=None, metavar="N", help="cap the WKR at N entries (MemN)")
-    p.add_argument("--limit", type=int, default=None, metavar="N", help="first N episodes of each subset")
+    p.add_argument("--memory-budget", type=_non_negative, default=None, metavar="N",
+                   help="cap the repository at N experiences (MemN; unit: the method's budget_unit)")
+    p.add_argument("--limit", type=_positive, default=None, metavar="N", help="first N episodes of each subset")
     p.add_argument("--out", default=None, help="run folder (default runs/<benchmark>-<method>-<planner>)")
     p.add_argument("--plan", default=None, metavar="YAML", help="experiment file listing streams (see docs)")
     p.add_argument("--data-dir", default=None, help="EmbodiedBench data (default $WORLDMIND_DATA, then "
@@ -37,25 +38,77 @@ def register(sub: Any) -> None:
     p.add_argument("--suite", default=None, choices=["embodiedbench", "generated"],
                    help="task suite (default: EmbodiedBench data if present, else generated)")
     p.add_argument("--suite-seed", type=int, default=0, help="seed of the generated suite")
-    p.add_argument("--suite-size", "--per-subset", dest="suite_size", type=int, default=50,
+    p.add_argument("--suite-size", "--per-subset", dest="suite_size", type=_positive, default=50,
                    help="episodes per subset of the generated suite (default 50)")
     p.add_argument("--env", default="twin", choices=["twin", "embodiedbench"], help="simulator backend")
-    p.add_argument("--no-goal-experience", action="store_true", help="ablation: no Goal Experience")
-    p.add_argument("--no-process-experience", action="store_true", help="ablation: no Process Experience")
-    p.add_argument("--no-verifier", action="store_true", help="ablation: no judge (no predict-act-verify)")
-    p.add_argument("--top-k", type=int, default=None, help="entries retrieved per partition (default per benchmark)")
-    p.add_argument("--verify", default="first", choices=["first", "every"],
-                   help="verify the first action of each plan (paper) or every executed action")
-    p.add_argument("--max-plan-actions", type=int, default=None, metavar="N",
-                   help="cap on actions per plan (default 20, as in the paper's prompt)")
-    p.add_argument("--planner-max-tokens", type=int, default=None, metavar="N",
-                   help="planner token budget (default 2048)")
+    add_method_flags(p)
     p.add_argument("--wave", type=int, default=1, metavar="N",
                    help="N episodes of a stream at once on a memory snapshot (deviation from the paper)")
-    p.add_argument("--max-concurrency", type=int, default=None, metavar="N", help="bound in-flight model requests")
+    p.add_argument("--max-concurrency", type=_positive, default=None, metavar="N",
+                   help="bound in-flight model requests (>= 1; default unbounded)")
     p.add_argument("--no-cache", action="store_true", help="do not record responses in OUT/cache.sqlite")
     p.add_argument("--progress", choices=["auto", "bars", "lines"], default="auto")
     p.set_defaults(func=main)
+
+
+def _positive(value: str) -> int:
+    n = _integer(value)
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {value}")
+    return n
+
+
+def _non_negative(value: str) -> int:
+    n = _integer(value)
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {value}")
+    return n
+
+
+def _integer(value: str) -> int:
+    try:
+        return int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {value!r}") from None
+
+
+def _method_config_fields() -> dict[str, Any]:
+    """Every option of every registered method's config: name -> pydantic FieldInfo (first wins)."""
+    from worldmind_local.registry import METHODS
+
+    fields: dict[str, Any] = {}
+    for name in METHODS.names():
+        for key, info in METHODS.get(name).config_class.model_fields.items():
+            fields.setdefault(key, info)
+    return fields
+
+
+def add_method_flags(p: argparse.ArgumentParser) -> None:
+    """One flag per method option, generated from the methods' pydantic configs (`--top-k 3`,
+    `--judge-feedback/--no-judge-feedback`, ...); unset flags leave the method's default. An option
+    applies to the methods that have it; experiment files set the same fields under `options`."""
+    import typing
+
+    group = p.add_argument_group("method options (from the methods' configs; see `worldmind methods list`)")
+    for key, info in _method_config_fields().items():
+        flag = "--" + key.replace("_", "-")
+        annotation = info.annotation
+        args = [a for a in typing.get_args(annotation) if a is not type(None)]
+        base = args[0] if args and typing.get_origin(annotation) is not typing.Literal else annotation
+        help_text = (info.description or key) + f" (default {info.default})"
+        if base is bool:
+            group.add_argument(flag, dest=f"opt_{key}", action=argparse.BooleanOptionalAction, default=None,
+                               help=help_text)
+        elif typing.get_origin(annotation) is typing.Literal:
+            group.add_argument(flag, dest=f"opt_{key}", choices=list(typing.get_args(annotation)), default=None,
+                               help=help_text)
+        else:
+            kind = base if base in (int, float) else str
+            group.add_argument(flag, dest=f"opt_{key}", type=kind, default=None, help=help_text)
+
+
+def method_options(args: argparse.Namespace) -> dict[str, Any]:
+    return {k[4:]: v for k, v in vars(args).items() if k.startswith("opt_") and v is not None}
 
 
 def _int_list(value: str, flag: str) -> list[int]:
@@ -68,7 +121,6 @@ def _int_list(value: str, flag: str) -> list[int]:
 def build_config(args: argparse.Namespace) -> tuple[Any, str]:
     from worldmind_local.data import adapter
     from worldmind_local.runner.config import (
-        MethodOptions,
         RunConfig,
         expand_streams,
         load_plan_file,
@@ -90,13 +142,23 @@ def build_config(args: argparse.Namespace) -> tuple[Any, str]:
         if unknown:
             raise ValueError(f"unknown subset(s) {', '.join(unknown)} for {args.benchmark}; "
                              f"known: {', '.join(ad.subsets)}")
-        options = MethodOptions(
-            top_k=args.top_k, goal_experience=not args.no_goal_experience,
-            process_experience=not args.no_process_experience, verifier=not args.no_verifier,
-            verify=args.verify, max_plan_actions=args.max_plan_actions,
-            planner_max_tokens=args.planner_max_tokens,
-        )
+        options = method_options(args)
         methods = split_list(args.method)
+        if not methods:
+            raise ValueError("--method: give at least one method (see `worldmind methods list`)")
+        from worldmind_local.registry import METHODS
+
+        unknown_methods = [m for m in methods if m not in METHODS]
+        if unknown_methods:
+            raise ValueError(f"--method: unknown method(s) {', '.join(unknown_methods)}; "
+                             f"known: {', '.join(METHODS.names())}")
+        from worldmind_local.runner.config import method_class
+
+        used = {k for m in methods for k in method_class(m).config_class.model_fields} | {
+            "goal_experience", "process_experience", "verifier"}
+        stray = sorted(set(options) - used)
+        if stray:
+            raise ValueError(f"option(s) {', '.join(stray)} apply to none of the methods {', '.join(methods)}")
         streams = expand_streams(
             benchmark=args.benchmark, subsets=subsets, methods=methods, planner=args.planner,
             judge=args.judge, seeds=_int_list(args.seed, "--seed"), memory_from=args.memory_from,
@@ -112,7 +174,11 @@ def main(args: argparse.Namespace) -> int:
     from worldmind_local.report import format_results
     from worldmind_local.runner.run import run_experiment
 
-    config, out = build_config(args)
+    try:
+        config, out = build_config(args)
+    except (ValueError, KeyError) as exc:
+        print(f"worldmind run: {exc}", file=sys.stderr)
+        return 2
     progress = {"auto": None, "bars": True, "lines": False}[args.progress]
     print(f"worldmind run: {len(config.streams)} stream(s) -> {out}", file=sys.stderr)
     result = asyncio.run(run_experiment(config, out, max_concurrency=args.max_concurrency, progress=progress))

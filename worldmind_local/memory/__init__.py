@@ -14,9 +14,11 @@ from worldmind_local.memory.entries import (
     MemoryDataError,
     Partition,
 )
+from worldmind_local.memory.protocol import Memory
 from worldmind_local.memory.repository import WorldKnowledgeRepository
 
 __all__ = [
+    "Memory",
     "DEFAULT_DIM",
     "DEFAULT_MODEL_ID",
     "GOAL",

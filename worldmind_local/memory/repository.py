@@ -9,9 +9,12 @@ Mechanics (paper Sec. 2 and Alg. 2):
   so a task never retrieves the workflow distilled from itself.
 
 Budget policy (the paper's Mem-N ablation, "MemX indicates a maximum capacity of X experiences"):
-`budget` caps the number of entries over both partitions together. Entries are admitted first come,
-first kept: once the repository holds `budget` entries, every later candidate is refused (and counted
-in `rejected_budget`); nothing is evicted. The paper describes no eviction rule, its Mem-N repositories
+`budget` caps the repository over both partitions together, in the unit `budget_unit`:
+`episodes` (default; the paper's reading: an experience is what one task episode contributes, and the
+WKR "is bounded by the number of tasks") counts distinct source episodes, so all the rules and the
+workflow of an admitted episode enter together; `entries` counts single entries (each rule is one).
+Entries are admitted first come, first kept: once the cap is reached every later candidate from a new
+source is refused (and counted in `rejected_budget`); nothing is evicted. The paper describes no eviction rule, its Mem-N repositories
 grow with the task sequence until they reach N, and refusing keeps the repository a pure function of the
 episode order, which is what makes a resumed or replayed run reproduce it exactly. `budget=0` is Mem0
 (no memory); `budget=None` is unbounded. Loading a saved repository with a smaller budget keeps its
@@ -49,9 +52,16 @@ class WorldKnowledgeRepository:
     """Process + Goal Experience with near-duplicate filtering, an optional budget, and fast top-k."""
 
     def __init__(self, embedder: Embedder | None = None, *, budget: int | None = None,
-                 dedup_threshold: float = 0.95) -> None:
+                 dedup_threshold: float = 0.95, budget_unit: str = "episodes") -> None:
         if budget is not None and budget < 0:
             raise ValueError(f"memory budget must be >= 0 or None, got {budget}")
+        if budget_unit not in ("episodes", "entries"):
+            raise ValueError(f"budget_unit must be 'episodes' or 'entries', got {budget_unit!r}")
+        self.budget_unit = budget_unit
+        self._sources: set[tuple[str, ...]] = set()
+        # (episode index, rows after its commit) per committed stream episode: lets a resumed run cut
+        # the repository back to exactly the episodes whose records are on disk.
+        self.commits: list[list[int]] = []
         if not 0.0 < dedup_threshold <= 1.0:
             raise ValueError(f"dedup_threshold must be in (0, 1], got {dedup_threshold}")
         self._embedder = embedder
@@ -111,12 +121,41 @@ class WorldKnowledgeRepository:
         if part.max_text_similarity(text) >= self.dedup_threshold - _SIMILARITY_EPS:
             self.rejected_duplicates += 1
             return False
-        if self.budget is not None and len(self._order) >= self.budget:
-            self.rejected_budget += 1
-            return False
+        source = _source(entry)
+        if self.budget is not None:
+            used = len(self._sources) if self.budget_unit == "episodes" else len(self._order)
+            new_source = self.budget_unit == "entries" or source not in self._sources
+            if new_source and used >= self.budget:
+                self.rejected_budget += 1
+                return False
         part.append(entry.without_embeddings(), key, text)
         self._order.append((entry.partition, part.n - 1))
+        self._sources.add(source)
         return True
+
+    @staticmethod
+    def entry_from_record(item: dict[str, Any]) -> ExperienceEntry:
+        """An entry from its episodes.jsonl form (no vectors; `embed` computes them)."""
+        return ExperienceEntry(**item)
+
+    def commit(self, episode: int) -> None:
+        """Mark the end of one stream episode's additions (see `truncate_to_commits`)."""
+        self.commits.append([int(episode), len(self._order)])
+
+    def truncated(self, rows: int) -> WorldKnowledgeRepository:
+        """A copy holding only the first `rows` entries in insertion order (exact: dedup and budget
+        decisions depend only on the entries before)."""
+        kept = self.entries(with_embeddings=True)[:rows]
+        other = WorldKnowledgeRepository(self._embedder, budget=self.budget, dedup_threshold=self.dedup_threshold,
+                                         budget_unit=self.budget_unit)
+        other.dim, other.embedder_model_id = self.dim, self.embedder_model_id
+        if kept:
+            keys = np.asarray([e.key_embedding for e in kept], dtype=np.float32)
+            texts = np.asarray([e.text_embedding for e in kept], dtype=np.float32)
+            other._bulk_insert([e.without_embeddings() for e in kept], keys, texts)
+        other.commits = [c for c in self.commits if c[1] <= rows]
+        other.rejected_duplicates, other.rejected_budget = self.rejected_duplicates, self.rejected_budget
+        return other
 
     def _unit(self, entry: ExperienceEntry, field: str) -> np.ndarray:
         value = getattr(entry, field)
@@ -186,10 +225,13 @@ class WorldKnowledgeRepository:
 
     def copy(self) -> WorldKnowledgeRepository:
         """An independent snapshot (for waves): adding to one never changes the other."""
-        other = WorldKnowledgeRepository(self._embedder, budget=self.budget, dedup_threshold=self.dedup_threshold)
+        other = WorldKnowledgeRepository(self._embedder, budget=self.budget, dedup_threshold=self.dedup_threshold,
+                                         budget_unit=self.budget_unit)
         other.dim, other.embedder_model_id = self.dim, self.embedder_model_id
         other._parts = {p: part.copy() for p, part in self._parts.items()}
         other._order = list(self._order)
+        other._sources = set(self._sources)
+        other.commits = [list(c) for c in self.commits]
         other.rejected_duplicates, other.rejected_budget = self.rejected_duplicates, self.rejected_budget
         return other
 
@@ -197,7 +239,8 @@ class WorldKnowledgeRepository:
 
     def metadata(self) -> dict[str, Any]:
         return {"embedder_model_id": self.embedder_model_id, "dim": self.dim,
-                "dedup_threshold": self.dedup_threshold, "budget": self.budget, "counts": self.counts()}
+                "dedup_threshold": self.dedup_threshold, "budget": self.budget, "budget_unit": self.budget_unit,
+                "counts": self.counts(), "commits": self.commits}
 
     def to_dataset(self) -> Any:
         """A `datasets.Dataset`, one row per entry in insertion order, embeddings as float32 lists."""
@@ -228,7 +271,8 @@ class WorldKnowledgeRepository:
 
     @classmethod
     def from_dataset(cls, dataset: Any, embedder: Embedder | None = None, *, where: str = "dataset",
-                     budget: int | None = UNSET, dedup_threshold: float = UNSET) -> WorldKnowledgeRepository:
+                     budget: int | None = UNSET, dedup_threshold: float = UNSET,
+                     budget_unit: str | None = None) -> WorldKnowledgeRepository:
         """Rebuild from rows in order, without re-running dedup (a saved repository is already deduped).
 
         Settings not passed come from the stored metadata. Null embeddings are computed with the
@@ -237,12 +281,16 @@ class WorldKnowledgeRepository:
         dataset = as_single_dataset(dataset)
         meta = read_metadata(dataset)
         settings = resolve_settings(meta, dataset, embedder, where, budget, dedup_threshold)
-        repo = cls(embedder, budget=settings["budget"], dedup_threshold=settings["dedup_threshold"])
+        unit = budget_unit or meta.get("budget_unit") or "entries"
+        repo = cls(embedder, budget=settings["budget"], dedup_threshold=settings["dedup_threshold"], budget_unit=unit)
         repo.dim, repo.embedder_model_id = settings["dim"], settings["embedder_model_id"]
+        commits = meta.get("commits")
+        repo.commits = [list(map(int, c)) for c in commits] if isinstance(commits, list) else []
         repo._parts = {p: PartitionIndex(repo.dim) for p in PARTITIONS}
         entries, keys, texts = read_dataset(dataset, where, repo.dim)
-        if repo.budget is not None and len(entries) > repo.budget:
-            entries, keys, texts = entries[: repo.budget], keys[: repo.budget], texts[: repo.budget]
+        if repo.budget is not None:
+            cut = _budget_prefix(entries, repo.budget, repo.budget_unit)
+            entries, keys, texts = entries[:cut], keys[:cut], texts[:cut]
         repo._fill_missing(entries, keys, texts)
         repo._bulk_insert(entries, keys, texts)
         return repo
@@ -268,4 +316,23 @@ class WorldKnowledgeRepository:
         seen = dict.fromkeys(PARTITIONS, 0)
         for e in entries:
             self._order.append((e.partition, seen[e.partition]))
+            self._sources.add(_source(e))
             seen[e.partition] += 1
+
+
+def _source(entry: ExperienceEntry) -> tuple[str, ...]:
+    """The episode an entry came from (the unit of an `episodes` budget)."""
+    return (entry.run_id, entry.benchmark, entry.subset, entry.task_id, str(entry.episode))
+
+
+def _budget_prefix(entries: list[ExperienceEntry], budget: int, unit: str) -> int:
+    """How many leading entries a repository of this budget keeps (the same ones the policy keeps)."""
+    if unit == "entries":
+        return min(len(entries), budget)
+    sources: set[tuple[str, ...]] = set()
+    for i, e in enumerate(entries):
+        src = _source(e)
+        if src not in sources and len(sources) >= budget:
+            return i
+        sources.add(src)
+    return len(entries)

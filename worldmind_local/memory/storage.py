@@ -9,7 +9,11 @@ dataset, as JSON in `info.description`.
 Saving never leaves a half-written folder: the dataset is written to a temporary folder beside the
 target, then swapped in with one atomic `renameat2(RENAME_EXCHANGE)` on Linux (a rename when the target
 does not exist yet), and the old copy is deleted afterwards. A crash at any point leaves either the old
-or the new repository at `path`.
+or the new repository at `path`. The saved folder gets the modes a plain `mkdir` / `open` would give
+it (0755 / 0644 under the usual umask 022), not the 0700 of the temporary folder it was written in.
+
+`load_saved_dataset` is `datasets.load_from_disk` for repositories we did not write: a damaged arrow or
+JSON file becomes a MemoryDataError naming that file, not a pyarrow error naming nothing.
 """
 
 from __future__ import annotations
@@ -32,7 +36,7 @@ from worldmind_local.memory.entries import EMBEDDING_FIELDS, PARTITIONS, Experie
 
 __all__ = [
     "FORMAT", "UNSET", "features", "build_dataset", "read_dataset", "read_metadata", "as_single_dataset",
-    "resolve_settings", "atomic_save_dataset",
+    "resolve_settings", "atomic_save_dataset", "load_saved_dataset",
 ]
 
 FORMAT = "worldmind_local.wkr/1"
@@ -235,6 +239,64 @@ def _fsync_tree(folder: Path) -> None:
     _fsync_dir(folder)
 
 
+def _umask() -> int:
+    """The process umask, read without changing it (os.umask would race with saving threads)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0o022
+
+
+def _plain_modes(folder: Path) -> None:
+    """Folders 0777 & ~umask and files 0666 & ~umask, as mkdir/open would make them (mkdtemp gives 0700)."""
+    mask = _umask()
+    for root, dirs, files in os.walk(folder):
+        os.chmod(root, 0o777 & ~mask)
+        for name in files:
+            os.chmod(os.path.join(root, name), 0o666 & ~mask)
+        for name in dirs:
+            os.chmod(os.path.join(root, name), 0o777 & ~mask)
+
+
+def _damaged_file(folder: Path) -> tuple[Path, str] | None:
+    """The first arrow or JSON file of a saved dataset that cannot be read, with the reason."""
+    import pyarrow as pa
+
+    for item in sorted(folder.rglob("*")):
+        try:
+            if item.suffix == ".json":
+                json.loads(item.read_text(encoding="utf-8"))
+            elif item.suffix == ".arrow":
+                with pa.memory_map(str(item)) as source:
+                    pa.ipc.open_stream(source).read_all().validate(full=True)
+        except (OSError, ValueError, pa.ArrowException) as exc:
+            return item, " ".join(str(exc).split())[:200] or type(exc).__name__
+    return None
+
+
+def load_saved_dataset(path: str | os.PathLike[str]) -> Any:
+    """`datasets.load_from_disk(path)`, with every data file checked first: a corrupt arrow file or a
+    broken `dataset_info.json` is a MemoryDataError naming the file."""
+    from datasets import load_from_disk
+
+    folder = Path(path)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"no saved dataset at {folder}")
+    damaged = _damaged_file(folder)
+    if damaged is not None:
+        raise MemoryDataError(str(damaged[0]), "<file>", f"unreadable ({damaged[1]})")
+    try:
+        return load_from_disk(str(folder))
+    except FileNotFoundError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - datasets raises many kinds; all mean the same to the user
+        reason = " ".join(str(exc).split())[:200]
+        raise MemoryDataError(str(folder), "<folder>", f"not a saved dataset ({type(exc).__name__}: {reason})") from None
+
+
 def _looks_like_dataset(path: Path) -> bool:
     return (path / "dataset_info.json").exists() or (path / "dataset_dict.json").exists() or not any(
         path.iterdir())
@@ -253,6 +315,7 @@ def atomic_save_dataset(dataset: Any, path: str | os.PathLike[str]) -> None:
         with _quiet_datasets():
             # an empty dataset saved with the default sharding has no data file and cannot be loaded back
             dataset.save_to_disk(str(tmp), num_shards=1 if len(dataset) == 0 else None)
+        _plain_modes(tmp)
         _fsync_tree(tmp)
         if not target.exists():
             os.rename(tmp, target)

@@ -1,79 +1,154 @@
-"""The method seam: what the runner hands a method per episode, and what it gets back.
+"""The method seam: what a method is, what it is handed per episode, and what it hands back.
 
-A method is the policy around the planner (prompting, parsing, reacting to steps and episode ends).
-The runner builds one `EpisodeContext` per episode: the backends per role, the stream's memory (or a
-snapshot of it when episodes run in waves), the embedder, and the `MethodConfig` of the stream.
+A method is the policy around the planner. The generic episode driver (`worldmind_local.agent.driver`)
+implements EmbodiedBench's evaluator protocol once (plan, screen ids, execute until the first invalid
+action or the plan's end, re-plan with the history, the step and invalid-action limits, the
+benchmark's unusable-output policy) and calls a method's hooks at four points:
+
+- `start(ep)`      once, after `env.reset` (retrieve what the episode needs, load examples);
+- `plan(ep)`       once per planning step: build the planner's prompt, ask, parse -> `Proposal`;
+- `after_step(ep, check)` after every executed action (collect what to verify);
+- `after_plan(ep)` after the actions of one plan ran (verify, reflect);
+- `finish(ep)`     once, at the end (distil, judge success for a memory write).
+
+A method never writes to a memory: it appends `ExperienceEntry`s to `ep.experience`, and the runner
+commits them to the stream's memory after the episode (in waves: in episode order). A method reads the
+committed memory through `ep.ctx.memory`. Each method has one pydantic config (`config_class`) from
+which `worldmind run` flags and experiment-file `options` are generated.
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
-from typing import TYPE_CHECKING, Any, Literal, Protocol, runtime_checkable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol, runtime_checkable
 
-from models.base import ChatBackend
-from worldmind_local.env import Env, Task
-from worldmind_local.records import EpisodeRecord
+from pydantic import BaseModel, ConfigDict, Field
+
+from models.base import ChatBackend, ChatResult
 
 if TYPE_CHECKING:  # the memory package pulls in numpy/datasets; methods import it only when used
-    from worldmind_local.memory import Embedder, WorldKnowledgeRepository
+    from worldmind_local.agent.driver import Episode, ExecutedAction
+    from worldmind_local.agent.plan import Plan
+    from worldmind_local.env import BenchmarkAdapter
+    from worldmind_local.memory import Embedder
 
-__all__ = ["MethodConfig", "EpisodeContext", "Method"]
+__all__ = [
+    "MethodConfig",
+    "EpisodeContext",
+    "Proposal",
+    "Method",
+    "BaseMethod",
+    "MemoryScope",
+    "ObservationMode",
+]
+
+ObservationMode = Literal["auto", "image", "none", "symbolic"]
+MemoryScope = Literal["episodic", "global"]
 
 
-@dataclass
-class MethodConfig:
-    """Switches and sampling of one stream. The defaults are full WorldMind with greedy decoding.
+class MethodConfig(BaseModel):
+    """Settings every method has. Subclasses add their own fields; every field is a CLI flag.
 
-    `top_k` None means the benchmark's default (the runner fills it from the adapter). `verify` picks
-    predict-act-verify on the first executed action of each plan (the paper) or on every executed
-    action. `abstract_with="vlm"` asks a summarizer model to abstract states from images where the env
-    gives them. `planner_images` None sends the observation image to the planner exactly when the env
-    gives one and the planner backend is a vision-language model.
+    `observation` says what the planner is shown of the current state (EB's protocol by default):
+    `auto` = the camera image for a vision planner where the env renders one; otherwise EB's
+    language-only mode (`none`: instruction, actions, examples, history with feedback) on EB-ALFRED and
+    EB-Habitat, and EB-Navigation's text description as the stand-in for its image. `symbolic` shows
+    the twin's perfect abstract state: an explicit, labelled departure from the benchmark.
     """
 
-    top_k: int | None = None
-    goal_experience: bool = True
-    process_experience: bool = True
-    verifier: bool = True
-    verify: Literal["first", "every"] = "first"
-    abstract_with: Literal["text", "vlm"] = "text"
-    max_plan_actions: int = 20
-    max_rules: int = 3
-    planner_images: bool | None = None
-    temperature: float = 0.0
-    planner_max_tokens: int = 2048  # fits the bounded schema: 20 actions of bounded strings
-    judge_max_tokens: int = 256
-    reflector_max_tokens: int = 512
-    distiller_max_tokens: int = 512
-    summarizer_max_tokens: int = 384
+    model_config = ConfigDict(extra="forbid", frozen=True)
 
-    def __post_init__(self) -> None:
-        if self.verify not in ("first", "every"):
-            raise ValueError(f"MethodConfig.verify must be 'first' or 'every', not {self.verify!r}")
-        if self.abstract_with not in ("text", "vlm"):
-            raise ValueError(f"MethodConfig.abstract_with must be 'text' or 'vlm', not {self.abstract_with!r}")
-        if self.top_k is not None and self.top_k < 0:
-            raise ValueError(f"MethodConfig.top_k must be >= 0, not {self.top_k}")
-        if self.max_plan_actions < 1 or self.max_rules < 1:
-            raise ValueError("MethodConfig.max_plan_actions and max_rules must be >= 1")
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+    observation: ObservationMode = Field("auto", description="what the planner sees: auto|image|none|symbolic")
+    n_shots: int | None = Field(None, ge=0, le=20, description="in-context examples (default per benchmark)")
+    temperature: float = Field(0.0, ge=0.0, le=2.0, description="planner sampling temperature")
+    max_plan_actions: int = Field(20, ge=1, le=20, description="cap on actions per plan (paper: 20)")
+    planner_max_tokens: int = Field(2048, ge=16, le=32768, description="planner token budget")
 
 
 @dataclass
 class EpisodeContext:
-    models: dict[str, ChatBackend]          # role -> backend: planner, judge, reflector, distiller, summarizer
+    """What the runner hands a method for one episode. `memory` is the committed memory of the stream
+    (or of the wave's snapshot): read it, never write it."""
+
+    models: dict[str, ChatBackend]          # role -> backend
     model_ids: dict[str, str]               # role -> model id (provenance)
-    memory: WorldKnowledgeRepository | None
+    memory: Any | None
     embedder: Embedder | None
     run_id: str = ""
     seed: int = 0
     config: MethodConfig = field(default_factory=MethodConfig)
+    adapter: BenchmarkAdapter | None = None
+    data_dir: str | None = None
+
+
+@dataclass
+class Proposal:
+    """One planning step's answer: the parsed plan, or why there is none (`error`: EB's
+    output_json_error). `result` is the planner call's result (tokens, latency); `extra` goes into the
+    step's PlanRecord (what the method retrieved, selected, scored)."""
+
+    plan: Plan | None
+    result: ChatResult | None = None
+    raw: str = ""
+    error: str | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
 
 
 @runtime_checkable
 class Method(Protocol):
-    name: str
+    name: ClassVar[str]
+    description: ClassVar[str]
+    memory_scope: ClassVar[MemoryScope]
+    config_class: ClassVar[type[MethodConfig]]
+    config: MethodConfig
 
-    async def run_episode(self, task: Task, env: Env, ctx: EpisodeContext) -> EpisodeRecord: ...
+    def new_memory(self, embedder: Any, budget: int | None) -> Any | None: ...
+
+    def load_memory(self, path: str, embedder: Any, budget: int | None) -> Any | None: ...
+
+    async def start(self, ep: Episode) -> None: ...
+
+    async def plan(self, ep: Episode) -> Proposal: ...
+
+    def after_step(self, ep: Episode, executed: ExecutedAction) -> None: ...
+
+    async def after_plan(self, ep: Episode) -> None: ...
+
+    async def finish(self, ep: Episode) -> None: ...
+
+
+class BaseMethod:
+    """No-op hooks and the config plumbing; a method overrides what it needs."""
+
+    name: ClassVar[str] = "base"
+    description: ClassVar[str] = ""
+    memory_scope: ClassVar[MemoryScope] = "episodic"
+    config_class: ClassVar[type[MethodConfig]] = MethodConfig
+    # Fields a named variant fixes (an ablation is a method name, never a flag).
+    fixed: ClassVar[dict[str, Any]] = {}
+
+    def __init__(self, config: MethodConfig | dict[str, Any] | None = None) -> None:
+        if isinstance(config, MethodConfig):
+            config = config.model_dump(exclude_unset=True)
+        self.config = self.config_class(**{**(config or {}), **self.fixed})
+
+    def new_memory(self, embedder: Any, budget: int | None) -> Any | None:
+        return None
+
+    def load_memory(self, path: str, embedder: Any, budget: int | None) -> Any | None:
+        return None
+
+    async def start(self, ep: Episode) -> None:
+        return None
+
+    async def plan(self, ep: Episode) -> Proposal:  # pragma: no cover - every method plans
+        raise TypeError(f"method {self.name} does not implement plan()")
+
+    def after_step(self, ep: Episode, executed: ExecutedAction) -> None:
+        return None
+
+    async def after_plan(self, ep: Episode) -> None:
+        return None
+
+    async def finish(self, ep: Episode) -> None:
+        return None

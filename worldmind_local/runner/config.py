@@ -14,45 +14,43 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-__all__ = ["MethodOptions", "StreamSpec", "RunConfig", "load_plan_file", "expand_streams"]
+__all__ = ["StreamSpec", "RunConfig", "load_plan_file", "expand_streams", "method_class", "canonical_method"]
 
 
-class MethodOptions(BaseModel):
-    """Ablation switches and knobs passed to the method (see methods.base.MethodConfig)."""
+def method_class(name: str) -> Any:
+    from worldmind_local.registry import METHODS
 
-    model_config = ConfigDict(extra="forbid")
-    top_k: int | None = None
-    goal_experience: bool = True
-    process_experience: bool = True
-    verifier: bool = True
-    verify: str = "first"
-    abstract_with: str = "text"
-    # Sampling caps (None = the method's default; see methods.base.MethodConfig).
-    max_plan_actions: int | None = None
-    planner_max_tokens: int | None = None
-    judge_max_tokens: int | None = None
-    reflector_max_tokens: int | None = None
-    distiller_max_tokens: int | None = None
+    return METHODS.get(name)
 
-    def method_config_fields(self) -> dict[str, Any]:
-        """The options as MethodConfig keyword arguments (unset caps left to the method's defaults)."""
-        return {k: v for k, v in self.model_dump().items() if v is not None}
 
-    @field_validator("verify")
-    @classmethod
-    def _verify(cls, v: str) -> str:
-        if v not in ("first", "every"):
-            raise ValueError("verify must be 'first' or 'every'")
-        return v
+def canonical_method(method: str, options: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    """(method name, options) in their one spelling: options validated against the method's config,
+    only values that differ from the defaults kept, and WorldMind's ablation switches turned into the
+    ablation's method name (`worldmind` + goal_experience=false -> `worldmind_process_only`)."""
+    cls = method_class(method)
+    options = dict(options or {})
+    from worldmind_local.methods.worldmind import SWITCHES, WorldMind, canonical_variant
 
-    @field_validator("top_k")
-    @classmethod
-    def _top_k(cls, v: int | None) -> int | None:
-        if v is not None and v < 0:
-            raise ValueError("top_k must be >= 0")
-        return v
+    if isinstance(cls, type) and issubclass(cls, WorldMind):
+        switches = {k: bool(options.pop(k, cls.fixed[k])) for k in SWITCHES}
+        variant = canonical_variant(switches)
+        if variant is None:
+            raise ValueError(f"method {method}: switches {switches} name no WorldMind variant; use one of the "
+                             f"methods worldmind, worldmind_goal_only, worldmind_process_only, "
+                             f"worldmind_no_verifier, worldmind_baseline")
+        method, cls = variant, method_class(variant)
+    config_class = cls.config_class
+    unknown = sorted(set(options) - set(config_class.model_fields))
+    if unknown:
+        raise ValueError(f"method {method} has no option(s) {', '.join(unknown)}; "
+                         f"its options: {', '.join(sorted(config_class.model_fields))}")
+    full = config_class(**{**options, **getattr(cls, "fixed", {})})
+    defaults = config_class(**getattr(cls, "fixed", {}))
+    kept = {k: v for k, v in full.model_dump(mode="json").items()
+            if k in options and v != getattr(defaults, k) and k not in getattr(cls, "fixed", {})}
+    return method, kept
 
 
 class StreamSpec(BaseModel):
@@ -64,13 +62,31 @@ class StreamSpec(BaseModel):
     judge: str | None = None  # None -> same as planner
     seed: int = 0
     memory_from: str | None = None
-    memory_budget: int | None = None
-    limit: int | None = None
-    options: MethodOptions = Field(default_factory=MethodOptions)
+    memory_budget: int | None = Field(None, ge=0)
+    limit: int | None = Field(None, ge=1)
+    options: dict[str, Any] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _canonical(self) -> StreamSpec:
+        method, options = canonical_method(self.method, self.options)
+        object.__setattr__(self, "method", method)
+        object.__setattr__(self, "options", options)
+        return self
 
     @property
     def judge_spec(self) -> str:
         return self.judge or self.planner
+
+    def method_config(self) -> Any:
+        cls = method_class(self.method)
+        return cls.config_class(**{**self.options, **getattr(cls, "fixed", {})})
+
+    @property
+    def label(self) -> str:
+        """How reports name the stream's method: the method, plus any non-default options."""
+        if not self.options:
+            return self.method
+        return self.method + "[" + ",".join(f"{k}={v}" for k, v in sorted(self.options.items())) + "]"
 
     @property
     def stream_id(self) -> str:
@@ -83,9 +99,7 @@ class StreamSpec(BaseModel):
             base += f".j-{short(self.judge_spec)}"
         base += f".s{self.seed}"
         extra = self.model_dump(include={"memory_from", "memory_budget", "options"})
-        if extra != StreamSpec(benchmark="x", subset="x", planner="x").model_dump(
-            include={"memory_from", "memory_budget", "options"}
-        ):
+        if any(v not in (None, {}) for v in extra.values()):
             base += "." + hashlib.sha256(json.dumps(extra, sort_keys=True).encode()).hexdigest()[:8]
         return re.sub(r"[^A-Za-z0-9._-]+", "_", base)
 
@@ -98,17 +112,10 @@ class RunConfig(BaseModel):
     suite: str | None = None  # None: EmbodiedBench data if present, else generated
     data_dir: str | None = None
     suite_seed: int = 0
-    suite_size: int = 50
+    suite_size: int = Field(50, ge=1)
     env: str = "twin"
-    wave: int = 1
+    wave: int = Field(1, ge=1)
     cache: bool = True
-
-    @field_validator("wave")
-    @classmethod
-    def _wave(cls, v: int) -> int:
-        if v < 1:
-            raise ValueError("wave must be >= 1")
-        return v
 
     @field_validator("streams")
     @classmethod
@@ -141,7 +148,7 @@ def expand_streams(
     memory_from: str | None,
     memory_budget: int | None,
     limit: int | None,
-    options: MethodOptions,
+    options: dict[str, Any],
 ) -> list[StreamSpec]:
     """The product subsets x methods x seeds, in that order (which is also the order of results)."""
     return [
@@ -155,12 +162,23 @@ def expand_streams(
             memory_from=memory_from,
             memory_budget=memory_budget,
             limit=limit,
-            options=options,
+            options=_applicable(method, options),
         )
         for subset in subsets
         for method in methods
         for seed in seeds
     ]
+
+
+def _applicable(method: str, options: dict[str, Any]) -> dict[str, Any]:
+    """The options that `method`'s config has (a command may list methods with different configs)."""
+    from worldmind_local.methods.worldmind import SWITCHES, WorldMind
+
+    cls = method_class(method)
+    fields = set(cls.config_class.model_fields)
+    if isinstance(cls, type) and issubclass(cls, WorldMind):
+        fields |= set(SWITCHES)
+    return {k: v for k, v in options.items() if k in fields}
 
 
 def load_plan_file(path: str | Path) -> tuple[dict[str, Any], list[StreamSpec]]:

@@ -84,9 +84,34 @@ def _model_facts(addresses: list[str]) -> dict[str, Any]:
     return facts
 
 
-def _method(name: str) -> Any:
-    factory = METHODS.get(name)
-    return factory() if callable(factory) else factory
+def _protocol_facts(spec: StreamSpec, env: str) -> dict[str, Any]:
+    """What the stream's models are shown and judged against (manifest.json `protocol`)."""
+    cfg = spec.method_config()
+    facts: dict[str, Any] = {"method": spec.method, "label": spec.label, "config": cfg.model_dump(mode="json"),
+                             "observation_requested": cfg.observation}
+    abstract_with = getattr(cfg, "abstract_with", None)
+    if abstract_with == "vlm":
+        facts["actual_state"] = "vlm_summary"
+    elif abstract_with is not None:
+        facts["actual_state"] = ("twin_symbolic_state (stand-in for the paper's VLM summary)" if env == "twin"
+                                 else "simulator_metadata_text")
+    return facts
+
+
+def _load_saved(path: str, embedder: Any, spec: StreamSpec, method: Any) -> Any:
+    """A stream's own saved memory/, with its commit log (unlike a --memory-from seed)."""
+    from worldmind_local.memory import WorldKnowledgeRepository
+
+    cfg = method.config
+    return WorldKnowledgeRepository.load(path, embedder, budget=spec.memory_budget,
+                                         budget_unit=getattr(cfg, "budget_unit", "entries"))
+
+
+def _memory_facts(path: str, memory: Any) -> dict[str, Any]:
+    """What a --memory-from source holds: where, how many entries, from which benchmarks."""
+    entries = memory.entries() if memory is not None and hasattr(memory, "entries") else []
+    return {"path": str(Path(path).resolve()), "entries": len(entries),
+            "benchmarks": sorted({e.benchmark for e in entries})}
 
 
 async def run_experiment(
@@ -117,6 +142,7 @@ async def run_experiment(
         data_facts[spec.stream_id] = {"suite": described, "tasks_sha256": _tasks_hash(tasks), "episodes": len(tasks)}
 
     addresses = sorted({a for s in config.streams for a in (s.planner, s.judge_spec)})
+    protocol = {s.stream_id: _protocol_facts(s, config.env) for s in config.streams}
     manifest = {
         "run_id": run_id,
         "started_at": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
@@ -125,10 +151,11 @@ async def run_experiment(
         "git_sha": git_sha(),
         "packages": package_versions(),
         "data": data_facts,
+        "protocol": protocol,
     }
     resumed = run_dir.open(config.identity(), manifest)
 
-    from worldmind_local.memory import Embedder, WorldKnowledgeRepository
+    from worldmind_local.memory import Embedder
 
     built: dict[str, Any] = dict(backends or {})
     owned: list[Any] = []
@@ -154,25 +181,38 @@ async def run_experiment(
     embedder = embedder if embedder is not None else Embedder()
     bars = Progress(enabled=progress)
     runners: list[StreamRunner] = []
+    memory_sources: dict[str, Any] = {}
     for spec in config.streams:
-        from worldmind_local.methods.base import EpisodeContext, MethodConfig
+        from worldmind_local.methods.base import EpisodeContext
 
         adapter = BENCHMARKS.get(spec.benchmark)
-        opts = spec.options
-        method_config = MethodConfig(**{"top_k": adapter.default_top_k, **opts.method_config_fields()})
-        def make_memory(_spec: StreamSpec = spec) -> Any:
-            if _spec.memory_from:
-                if not Path(_spec.memory_from).exists():
-                    raise FileNotFoundError(f"--memory-from {_spec.memory_from}: no such memory folder")
-                return WorldKnowledgeRepository.load(_spec.memory_from, embedder, budget=_spec.memory_budget)
-            return WorldKnowledgeRepository(embedder, budget=_spec.memory_budget)
+        method = METHODS.get(spec.method)(spec.method_config())
+
+        def make_memory(_spec: StreamSpec = spec, _method: Any = method) -> Any:
+            if not _spec.memory_from:
+                return _method.new_memory(embedder, _spec.memory_budget)
+            if not Path(_spec.memory_from).exists():
+                raise FileNotFoundError(f"--memory-from {_spec.memory_from}: no such memory folder")
+            memory = _method.load_memory(_spec.memory_from, embedder, _spec.memory_budget)
+            facts = _memory_facts(_spec.memory_from, memory)
+            foreign = [b for b in facts["benchmarks"] if b != _spec.benchmark]
+            facts["cross_environment"] = bool(foreign)
+            if foreign:
+                log.warning("stream %s: memory from %s holds %s experience (cross-environment transfer)",
+                            _spec.stream_id, _spec.memory_from, ", ".join(foreign))
+            memory_sources[_spec.stream_id] = facts
+            return memory
+
+        def load_saved(path: str, _spec: StreamSpec = spec, _method: Any = method) -> Any:
+            return _load_saved(path, embedder, _spec, _method)
 
         models, model_ids = role_backends(built, spec.planner, spec.judge_spec)
 
         def make_context(view: Any, *, _models=models, _ids=model_ids, _seed=spec.seed,
-                         _cfg=method_config) -> Any:
+                         _cfg=method.config, _adapter=adapter) -> Any:
             return EpisodeContext(models=_models, model_ids=_ids, memory=view, embedder=embedder,
-                                  run_id=run_id, seed=_seed, config=_cfg)
+                                  run_id=run_id, seed=_seed, config=_cfg, adapter=_adapter,
+                                  data_dir=config.data_dir)
 
         stream_dir = run_dir.stream(spec.stream_id)
         tasks = tasks_by_stream[spec.stream_id]
@@ -184,9 +224,9 @@ async def run_experiment(
                 on_episode(s, data)
 
         runners.append(StreamRunner(
-            spec, tasks=tasks, adapter=adapter, env_kind=config.env, method=_method(spec.method),
-            make_context=make_context, make_memory=make_memory, stream_dir=stream_dir, wave=config.wave,
-            on_episode=episode_done,
+            spec, tasks=tasks, adapter=adapter, env_kind=config.env, method=method,
+            make_context=make_context, make_memory=make_memory, load_saved=load_saved,
+            stream_dir=stream_dir, wave=config.wave, on_episode=episode_done,
         ))
         bar.skip(len(stream_dir.read_episodes()))
 
@@ -205,5 +245,12 @@ async def run_experiment(
     ])
     results["run_id"] = run_id
     results["finished_at"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    results["memory_sources"] = memory_sources
+    if memory_sources:
+        run_dir.update_manifest(memory_sources=memory_sources)
+    from worldmind_local.runner.schema import Manifest, Results
+
+    results = Results.model_validate(results).model_dump(mode="json")
+    Manifest.model_validate(run_dir.read_manifest())
     run_dir.write_results(results)
     return RunResult(run_dir, outcomes, results)

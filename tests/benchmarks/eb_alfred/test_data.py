@@ -57,7 +57,7 @@ def test_tiny_pack_loads_and_plays(tmp_path, make_task):
         ("splits.json", lambda d: d["base"][0].update(task="no-slash"), "base[0].task"),
         ("tasks.json", lambda d: d[f"{TRIAL}#0"].update(task_type="juggle"), f"{TRIAL}#0.task_type"),
         ("tasks.json", lambda d: d[f"{TRIAL}#0"]["pddl_params"].pop("parent_target"), f"{TRIAL}#0.pddl_params.parent_target"),
-        ("tasks.json", lambda d: d[f"{TRIAL}#0"]["scene"]["init_action"].pop("x"), f"{TRIAL}#0.scene.init_action"),
+        ("tasks.json", lambda d: d[f"{TRIAL}#0"]["scene"]["init_action"].pop("x"), f"{TRIAL}#0.scene.init_action.x"),
         ("tasks.json", lambda d: d.pop(f"{TRIAL}#0"), f"{TRIAL}#0"),
         ("scenes/trial_initial_states.json", lambda d: d["trials"][TRIAL].pop("objects"), f"trials.{TRIAL}.objects"),
         ("scenes/trial_initial_states.json", lambda d: d["trials"][TRIAL].update(in_receptacle=[["a"]]), f"trials.{TRIAL}.in_receptacle"),

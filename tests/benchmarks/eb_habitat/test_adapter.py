@@ -22,7 +22,7 @@ def test_registered_adapter_fits_the_protocol():
         "visual_appearance",
         "long_horizon",
     )
-    assert adapter.default_top_k == 2
+    assert adapter.default_top_k == 1
 
 
 @pytest.mark.embodiedbench_data

@@ -106,7 +106,7 @@ def test_bad_records_name_the_file_and_field(episode, write_subset, change, fiel
 
 
 def test_unreadable_and_missing_files(write_subset, tmp_path):
-    with pytest.raises(TaskDataError, match="cannot read JSON"):
+    with pytest.raises(TaskDataError, match="not valid JSON"):
         load_episodes(write_subset("base", "{not json"), "base")
     with pytest.raises(TaskDataError, match="'episodes'"):
         load_episodes(write_subset("base", {"episodes": 5}), "base")

@@ -14,9 +14,11 @@ import numpy as np
 import pytest
 
 from models.base import ChatRequest, ChatResult, ContextLengthError
+from worldmind_local.agent.driver import run_episode
 from worldmind_local.env import Observation, StepResult, Task
 from worldmind_local.memory import Embedder, WorldKnowledgeRepository
-from worldmind_local.methods.base import EpisodeContext, MethodConfig
+from worldmind_local.methods.base import EpisodeContext
+from worldmind_local.methods.worldmind import WorldMind, WorldMindConfig
 
 ROLES = ("planner", "judge", "reflector", "distiller", "summarizer")
 Reply = str | Callable[[ChatRequest], str] | Exception
@@ -163,6 +165,9 @@ class AppleWorld:
     def step(self, action_id: int) -> StepResult:
         self.step_calls.append(action_id)
         self.steps += 1
+        if not 0 <= action_id < len(self.actions):  # as EB-Navigation's env: an unknown id issues Done
+            return StepResult("Last action Done executed successfully.", False, 0.0, False, True, self._obs(),
+                              "env_done")
         error = self._apply(action_id)
         self.invalid += error is not None
         success = self.stored
@@ -204,8 +209,34 @@ def make_ctx(backend: ScriptedBackend, memory: Any = None, embedder: Any = None,
         models={role: backend for role in ROLES},
         model_ids={"planner": "scripted/planner", "judge": "scripted/judge", "reflector": "scripted/judge",
                    "distiller": "scripted/planner", "summarizer": "scripted/judge"},
-        memory=memory, embedder=embedder, run_id="run-test", seed=seed, config=MethodConfig(**config),
+        memory=memory, embedder=embedder, run_id="run-test", seed=seed, config=WorldMindConfig(**config),
     )
+
+
+def run_method(method: Any, task: Task, env: Any, ctx: EpisodeContext) -> Any:
+    """One episode through the generic driver, then the runner's commit: the experience embedded and
+    added to `ctx.memory` in order, each record item carrying `kept` (what the runner writes)."""
+    import asyncio
+
+    async def go() -> Any:
+        outcome = await run_episode(method, task, env, ctx)
+        items = []
+        if ctx.memory is not None:
+            for entry in await ctx.memory.embed(outcome.experience):
+                kept = ctx.memory.add_embedded(entry)
+                items.append({**entry.without_embeddings().model_dump(
+                    mode="json", exclude={"key_embedding", "text_embedding"}), "kept": kept})
+        outcome.record.experience = items
+        return outcome.record
+
+    return asyncio.run(go())
+
+
+def run_wm(task: Task, env: Any, ctx: EpisodeContext) -> Any:
+    """Full WorldMind with the context's config (its switches taken as given, for mechanism tests)."""
+    method = WorldMind()
+    method.config = ctx.config
+    return run_method(method, task, env, ctx)
 
 
 @pytest.fixture
@@ -219,5 +250,5 @@ def kit() -> SimpleNamespace:
     return SimpleNamespace(
         APPLE_ACTIONS=APPLE_ACTIONS, AppleWorld=AppleWorld, ContextLengthError=ContextLengthError,
         HashEmbedder=HashEmbedder, OK=OK, ROLES=ROLES, SOLVE=SOLVE, ScriptedBackend=ScriptedBackend,
-        make_ctx=make_ctx, plan_json=plan_json, verdict_json=verdict_json,
+        make_ctx=make_ctx, plan_json=plan_json, verdict_json=verdict_json, run_method=run_method, run_wm=run_wm,
     )

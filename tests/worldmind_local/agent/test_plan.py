@@ -14,7 +14,6 @@ from worldmind_local.agent.plan import (
     parse_plan,
     planner_schema,
     screen_ids,
-    unusable_output_policy,
 )
 
 
@@ -105,9 +104,11 @@ def test_random_policy_keeps_every_action() -> None:
 
 
 def test_policy_per_benchmark_follows_embodiedbench() -> None:
-    assert unusable_output_policy("eb_navigation") == POLICY_RANDOM
-    assert unusable_output_policy("eb_alfred") == POLICY_INVALID
-    assert unusable_output_policy("eb_habitat") == POLICY_INVALID
+    from worldmind_local.registry import BENCHMARKS
+
+    assert BENCHMARKS.get("eb_navigation").unusable_output == POLICY_RANDOM
+    assert BENCHMARKS.get("eb_alfred").unusable_output == POLICY_INVALID
+    assert BENCHMARKS.get("eb_habitat").unusable_output == POLICY_INVALID
 
 
 def test_schema_bounds_ids_and_plan_length() -> None:

@@ -16,7 +16,7 @@ from worldmind_local.agent.prompting import (
     planner_messages,
     render,
 )
-from worldmind_local.agent.reflector import MAX_RULE_CHARS, parse_rules
+from worldmind_local.agent.reflector import MAX_RULE_CHARS, parse_rules, reflector_schema
 from worldmind_local.records import StepRecord
 
 
@@ -50,8 +50,14 @@ def test_unusable_rules_are_flagged() -> None:
     assert parse_rules("no rules today", 3) == ((), True)
     assert parse_rules('{"rules": []}', 3) == ((), True)
     assert parse_rules('{"other": ["x"]}', 3) == ((), True)
-    long_rule = parse_rules(json.dumps({"rules": ["x" * 5000]}), 3)[0][0]
-    assert len(long_rule) == MAX_RULE_CHARS
+    # a long reflection is kept whole (the paper's shape ends with the general "Therefore ..." part)
+    long_text = ("My prediction that the apple would be in my hand failed because it was inside the closed "
+                 "fridge. " * 8) + "Therefore open a closed container before picking up what is inside it."
+    assert len(long_text) > 300
+    assert parse_rules(json.dumps({"rules": [long_text]}), None) == ((long_text,), False)
+    assert parse_rules(json.dumps({"rules": ["a", "b", "c", "d", "e"]}), None)[0] == ("a", "b", "c", "d", "e")
+    assert reflector_schema(None)["properties"]["rules"].get("maxItems") is None
+    assert reflector_schema(None)["properties"]["rules"]["items"]["maxLength"] == MAX_RULE_CHARS >= 1000
 
 
 def test_workflow_parsing() -> None:
@@ -94,8 +100,8 @@ def test_planner_user_message_holds_experience_history_and_image() -> None:
 
     history = [_step(1, 0.0), _step(1, 0.0, env_step=False)]
     messages = planner_messages("eb_alfred", actions=["a0", "a1", "a2"], instruction="Do it.",
-                                observation="obs", history=history, goal_experience=[E("Workflow G.")],
-                                process_experience=[E("Rule P1."), E("Rule P2.")], image="IMG")
+                                observation="obs", history=history, image="IMG",
+                                experience=format_experience([E("Workflow G.")], [E("Rule P1."), E("Rule P2.")]))
     content = messages[1]["content"]
     assert content[0] == {"type": "image", "image": "IMG"}
     text = content[1]["text"]

@@ -4,13 +4,13 @@ from pathlib import Path
 
 import pytest
 
-from worldmind_local.runner.config import MethodOptions, RunConfig, StreamSpec, expand_streams, load_plan_file
+from worldmind_local.runner.config import RunConfig, StreamSpec, expand_streams, load_plan_file
 
 
 def _streams(**kw):
     base = dict(benchmark="eb_alfred", subsets=["base", "spatial"], methods=["worldmind"], planner="hf:m",
                 judge=None, seeds=[0, 1], memory_from=None, memory_budget=None, limit=None,
-                options=MethodOptions())
+                options={})
     base.update(kw)
     return expand_streams(**base)
 
@@ -23,7 +23,7 @@ def test_expand_is_product_in_order():
 
 def test_stream_id_distinguishes_options_and_judge():
     a = StreamSpec(benchmark="eb_alfred", subset="base", planner="hf:m")
-    b = StreamSpec(benchmark="eb_alfred", subset="base", planner="hf:m", options=MethodOptions(verifier=False))
+    b = StreamSpec(benchmark="eb_alfred", subset="base", planner="hf:m", options={"top_k": 3})
     c = StreamSpec(benchmark="eb_alfred", subset="base", planner="hf:m", judge="hf:j")
     assert len({a.stream_id, b.stream_id, c.stream_id}) == 3
     assert a.stream_id == "eb_alfred.base.worldmind.m.s0"
@@ -51,7 +51,8 @@ def test_plan_file_expands_lists(tmp_path: Path):
     assert run == {"suite": "generated"}
     assert len(streams) == 5
     assert all(s.limit == 2 for s in streams)
-    assert streams[1].options.goal_experience is False
+    # an ablation switch becomes the ablation's method name (one spelling, one stream id)
+    assert streams[1].method == "worldmind_process_only" and streams[1].options == {}
 
 
 def test_plan_file_errors_name_the_field(tmp_path: Path):
@@ -62,3 +63,28 @@ def test_plan_file_errors_name_the_field(tmp_path: Path):
     plan.write_text("streams: 3\n")
     with pytest.raises(ValueError, match="streams"):
         load_plan_file(plan)
+
+
+def test_ablations_have_one_spelling_whatever_way_they_are_asked():
+    by_switch = StreamSpec(benchmark="eb_alfred", subset="base", planner="hf:m", options={"goal_experience": False})
+    by_name = StreamSpec(benchmark="eb_alfred", subset="base", planner="hf:m", method="worldmind_process_only")
+    assert by_switch.method == by_name.method == "worldmind_process_only"
+    assert by_switch.stream_id == by_name.stream_id and by_switch.label == by_name.label
+    base = StreamSpec(benchmark="eb_alfred", subset="base", planner="hf:m",
+                      options={"goal_experience": False, "process_experience": False, "verifier": False})
+    assert base.method == "worldmind_baseline"
+    # a default value given explicitly is the same stream as leaving it out
+    same = StreamSpec(benchmark="eb_alfred", subset="base", planner="hf:m", options={"verify": "first"})
+    assert same.options == {} and same.stream_id == "eb_alfred.base.worldmind.m.s0"
+
+
+def test_options_are_validated_against_the_method_config():
+    with pytest.raises(ValueError, match="no option"):
+        StreamSpec(benchmark="eb_alfred", subset="base", planner="hf:m", options={"top_kk": 3})
+    with pytest.raises(ValueError):
+        StreamSpec(benchmark="eb_alfred", subset="base", planner="hf:m", options={"planner_max_tokens": 0})
+    with pytest.raises(ValueError, match="no WorldMind variant"):
+        StreamSpec(benchmark="eb_alfred", subset="base", planner="hf:m",
+                   options={"goal_experience": False, "process_experience": False})
+    spec = StreamSpec(benchmark="eb_alfred", subset="base", planner="hf:m", options={"top_k": 3})
+    assert spec.method_config().top_k == 3 and spec.label == "worldmind[top_k=3]"
