@@ -413,8 +413,10 @@ class HFBackend:
                     slot.control = RowControl(s.max_tokens, s.temperature, s.top_p,
                                               None if s.seed is None else s.seed + slot.index,
                                               self.grammars.matcher(schema) if schema else None)
-                input_ids, mask, cache = self._prefill_inputs([slot.owner for slot in slots])
-                finished = running.admit(slots, input_ids, mask, cache)
+                # one prefill row per request: its n slots share it (`RunningBatch.admit` copies it)
+                input_ids, mask, cache = self._prefill_inputs(group)
+                prompt_row = {id(row): i for i, row in enumerate(group)}
+                finished = running.admit(slots, input_ids, mask, cache, [prompt_row[id(s.owner)] for s in slots])
             except Exception as exc:
                 for slot in slots:
                     slot.error = exc

@@ -70,11 +70,15 @@ class RunningBatch:
     def length(self) -> int:
         return 0 if self.mask is None else int(self.mask.shape[1])
 
-    def admit(self, slots: list[Slot], input_ids: torch.Tensor, mask: torch.Tensor, cache: Any) -> list[Slot]:
+    def admit(self, slots: list[Slot], input_ids: torch.Tensor, mask: torch.Tensor, cache: Any,
+              rows: list[int] | None = None) -> list[Slot]:
         """Prefill new rows and splice them in; returns the rows already finished by their first token.
 
         `cache` holds what precedes `input_ids` for these rows (spliced system prefixes, or nothing);
-        `mask` covers cache and input columns together, [len(slots), cache length + input length].
+        `mask` covers cache and input columns together, [prompts, cache length + input length].
+        `rows[i]` is the prompt row slot i decodes from (default: row i). A request with n > 1 sends its
+        prompt ONCE: the prefill runs per prompt, and its key/value rows and last logits are then
+        copied to each of its n slots (one prefill instead of n; each slot samples with its own seed).
         """
         width = int(input_ids.shape[1])
         past = int(mask.shape[1]) - width
@@ -82,11 +86,17 @@ class RunningBatch:
         out = self.model(input_ids=input_ids, attention_mask=mask, position_ids=position_ids,
                          past_key_values=cache, use_cache=True, logits_to_keep=1,
                          cache_position=torch.arange(past, past + width, device=input_ids.device))
+        new_cache, logits = out.past_key_values, out.logits[:, -1, :]
+        if rows is not None and rows != list(range(int(input_ids.shape[0]))):
+            index = torch.tensor(rows, device=input_ids.device)
+            new_cache.layers = [_plain(k.index_select(0, index), v.index_select(0, index))
+                                for k, v in map(_written, new_cache.layers)]
+            mask, logits = mask.index_select(0, index), logits.index_select(0, index)
         for i, slot in enumerate(slots):
             slot.position = int(mask[i].sum())
         first = len(self.slots)
-        self._splice(slots, out.past_key_values, mask)
-        finished = self._emit(out.logits[:, -1, :], self.slots[first:])
+        self._splice(slots, new_cache, mask)
+        finished = self._emit(logits, self.slots[first:])
         self._drop(finished)
         self._own_cache()
         return finished

@@ -25,3 +25,9 @@ METHODS.register("worldmind_no_verifier", "worldmind_local.methods.worldmind:Wor
 METHODS.register("worldmind_baseline", "worldmind_local.methods.worldmind:WorldMindBaseline")
 # The paper's baselines (baselines.md), each one module under methods/.
 METHODS.register("react", "worldmind_local.methods.react:ReAct")
+METHODS.register("bon", "worldmind_local.methods.bon:BestOfN")
+METHODS.register("simura", "worldmind_local.methods.simura:SimuRA")
+METHODS.register("naivemem", "worldmind_local.methods.naivemem:NaiveMem")
+METHODS.register("synapse", "worldmind_local.methods.synapse:Synapse")
+METHODS.register("awm", "worldmind_local.methods.awm:AgentWorkflowMemory")
+METHODS.register("reasoningbank", "worldmind_local.methods.reasoningbank:ReasoningBank")

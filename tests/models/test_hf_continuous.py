@@ -199,3 +199,25 @@ def test_a_model_error_fails_the_running_rows_and_the_next_request_is_served(smo
     for failed in (first, second):
         assert isinstance(failed, BackendError) and "simulated kernel failure" in str(failed)
     assert after[0].completion_tokens > 0
+
+
+def test_n_rows_of_one_request_share_one_prefill(smollm2_f32: Any) -> None:
+    """A request with n=3 is prefilled once (its prompt's tokens, not 3x), and its row k decodes what a
+    separate n=1 request seeded seed+k decodes: the rows only share the prompt's key/value prefix."""
+    system = {"role": "system", "content": "You answer in one short sentence about fruit and kitchens."}
+    messages = [system, {"role": "user", "content": "Name a fruit that is good in a salad, and say why."}]
+    many = ChatRequest(messages=messages, sampling=Sampling(temperature=0.7, max_tokens=10, seed=11, n=3))
+    singles = [replace(many, sampling=replace(many.sampling, n=1, seed=11 + k)) for k in range(3)]
+
+    async def run() -> tuple[list[str], int, list[str], int]:
+        await smollm2_f32.complete([singles[0]])  # the system prefix is now cached for both runs
+        before = smollm2_f32.prefilled_tokens
+        result = (await smollm2_f32.complete([many]))[0]
+        n_prefilled = smollm2_f32.prefilled_tokens - before
+        before = smollm2_f32.prefilled_tokens
+        alone = [(await smollm2_f32.complete([r]))[0] for r in singles]
+        return result.texts, n_prefilled, [a.text for a in alone], (smollm2_f32.prefilled_tokens - before) // 3
+
+    texts, n_prefilled, alone, per_single = asyncio.run(run())
+    assert len(texts) == 3 and texts == alone
+    assert n_prefilled == per_single > 0  # one prompt's worth of prefill for the three rows

@@ -16,6 +16,7 @@ from worldmind_local.memory.entries import (
 )
 from worldmind_local.memory.protocol import Memory
 from worldmind_local.memory.repository import WorldKnowledgeRepository
+from worldmind_local.memory.store import ExperienceStore, StoredExperience
 
 __all__ = [
     "Memory",
@@ -29,5 +30,7 @@ __all__ = [
     "MemoryDataError",
     "Partition",
     "WorldKnowledgeRepository",
+    "ExperienceStore",
+    "StoredExperience",
     "default_embedder",
 ]

@@ -37,6 +37,7 @@ from worldmind_local.memory.storage import (
     as_single_dataset,
     atomic_save_dataset,
     build_dataset,
+    load_saved_dataset,
     read_dataset,
     read_metadata,
     resolve_settings,
@@ -263,11 +264,9 @@ class WorldKnowledgeRepository:
         """From a folder written by `save` (or any `save_to_disk` folder, Dataset or DatasetDict)."""
         if not isinstance(path, (str, os.PathLike)):
             return cls.from_dataset(path, embedder, **kw)
-        from datasets import load_from_disk
-
         if not os.path.isdir(path):
             raise FileNotFoundError(f"no World Knowledge Repository at {path}")
-        return cls.from_dataset(load_from_disk(str(path)), embedder, where=str(path), **kw)
+        return cls.from_dataset(load_saved_dataset(path), embedder, where=str(path), **kw)
 
     @classmethod
     def from_dataset(cls, dataset: Any, embedder: Embedder | None = None, *, where: str = "dataset",

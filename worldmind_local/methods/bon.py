@@ -44,7 +44,14 @@ from pydantic import Field
 from worldmind_local.agent.calls import backend_for
 from worldmind_local.agent.driver import Episode
 from worldmind_local.agent.plan import Plan, PlanParseError, extract_first_json_object, parse_plan
-from worldmind_local.agent.prompting import action_list, env_prior, format_history, load_template, render, user_content
+from worldmind_local.agent.prompting import (
+    action_list,
+    env_prior,
+    format_history,
+    load_template,
+    render,
+    user_content,
+)
 from worldmind_local.methods.base import BaseMethod, MethodConfig, Proposal
 from worldmind_local.methods.react import eb_examples, react_messages, react_schema
 

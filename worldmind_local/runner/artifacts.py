@@ -326,7 +326,6 @@ class RunLock:
         holder = {
             "pid": os.getpid(), "pid_start": _pid_start(os.getpid()), "host": socket.gethostname(),
             "started_at": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-            "argv": sys.argv,
         }
         data = (json.dumps(holder, default=str) + "\n").encode()
         os.ftruncate(self._fd, 0)

@@ -153,104 +153,113 @@ async def run_experiment(
         "data": data_facts,
         "protocol": protocol,
     }
-    resumed = run_dir.open(config.identity(), manifest)
+    from worldmind_local.runner.preflight import check_memory_source, check_model_specs, check_out_path
 
-    from worldmind_local.memory import Embedder
-
-    built: dict[str, Any] = dict(backends or {})
-    owned: list[Any] = []
-    cache = None
-    if config.cache:
-        from models.cache import CachingBackend, ResponseCache
-
-        cache = ResponseCache(run_dir.cache_path)
-    for address in addresses:
-        if address not in built:
-            from models.specs import make_backend
-
-            built[address] = make_backend(address)
-            owned.append(built[address])
-        if cache is not None:
-            built[address] = CachingBackend(built[address], cache)
-    if max_concurrency:
-        limiter = asyncio.Semaphore(max_concurrency)
-        built = {a: LimitedBackend(b, limiter) for a, b in built.items()}
-    if not resumed or "models" not in (run_dir.read_manifest() or {}):
-        run_dir.update_manifest(models=_model_facts(addresses))
-
-    embedder = embedder if embedder is not None else Embedder()
-    bars = Progress(enabled=progress)
-    runners: list[StreamRunner] = []
-    memory_sources: dict[str, Any] = {}
+    # Everything a typo can break is checked before the run folder is created or locked.
+    check_out_path(out)
+    check_model_specs([a for a in addresses if a not in (backends or {})])
     for spec in config.streams:
-        from worldmind_local.methods.base import EpisodeContext
+        if spec.memory_from:
+            check_memory_source(spec.memory_from)
+    with run_dir.lock():  # one process per run folder; a second one gets one line naming the holder
+        resumed = run_dir.open(config.identity(), manifest)
 
-        adapter = BENCHMARKS.get(spec.benchmark)
-        method = METHODS.get(spec.method)(spec.method_config())
+        from worldmind_local.memory import Embedder
 
-        def make_memory(_spec: StreamSpec = spec, _method: Any = method) -> Any:
-            if not _spec.memory_from:
-                return _method.new_memory(embedder, _spec.memory_budget)
-            if not Path(_spec.memory_from).exists():
-                raise FileNotFoundError(f"--memory-from {_spec.memory_from}: no such memory folder")
-            memory = _method.load_memory(_spec.memory_from, embedder, _spec.memory_budget)
-            facts = _memory_facts(_spec.memory_from, memory)
-            foreign = [b for b in facts["benchmarks"] if b != _spec.benchmark]
-            facts["cross_environment"] = bool(foreign)
-            if foreign:
-                log.warning("stream %s: memory from %s holds %s experience (cross-environment transfer)",
-                            _spec.stream_id, _spec.memory_from, ", ".join(foreign))
-            memory_sources[_spec.stream_id] = facts
-            return memory
+        built: dict[str, Any] = dict(backends or {})
+        owned: list[Any] = []
+        cache = None
+        if config.cache:
+            from models.cache import CachingBackend, ResponseCache
 
-        def load_saved(path: str, _spec: StreamSpec = spec, _method: Any = method) -> Any:
-            return _load_saved(path, embedder, _spec, _method)
+            cache = ResponseCache(run_dir.cache_path)
+        for address in addresses:
+            if address not in built:
+                from models.specs import make_backend
 
-        models, model_ids = role_backends(built, spec.planner, spec.judge_spec)
+                built[address] = make_backend(address)
+                owned.append(built[address])
+            if cache is not None:
+                built[address] = CachingBackend(built[address], cache)
+        if max_concurrency:
+            limiter = asyncio.Semaphore(max_concurrency)
+            built = {a: LimitedBackend(b, limiter) for a, b in built.items()}
+        if not resumed or "models" not in (run_dir.read_manifest() or {}):
+            run_dir.update_manifest(models=_model_facts(addresses))
 
-        def make_context(view: Any, *, _models=models, _ids=model_ids, _seed=spec.seed,
-                         _cfg=method.config, _adapter=adapter) -> Any:
-            return EpisodeContext(models=_models, model_ids=_ids, memory=view, embedder=embedder,
-                                  run_id=run_id, seed=_seed, config=_cfg, adapter=_adapter,
-                                  data_dir=config.data_dir)
+        embedder = embedder if embedder is not None else Embedder()
+        bars = Progress(enabled=progress)
+        runners: list[StreamRunner] = []
+        memory_sources: dict[str, Any] = {}
+        for spec in config.streams:
+            from worldmind_local.methods.base import EpisodeContext
 
-        stream_dir = run_dir.stream(spec.stream_id)
-        tasks = tasks_by_stream[spec.stream_id]
-        bar = bars.add(spec.stream_id, total=len(tasks))
+            adapter = BENCHMARKS.get(spec.benchmark)
+            method = METHODS.get(spec.method)(spec.method_config())
 
-        def episode_done(s: StreamSpec, data: dict[str, Any], _bar=bar) -> None:
-            _bar.update(data)
-            if on_episode:
-                on_episode(s, data)
+            def make_memory(_spec: StreamSpec = spec, _method: Any = method) -> Any:
+                if not _spec.memory_from:
+                    return _method.new_memory(embedder, _spec.memory_budget)
+                if not Path(_spec.memory_from).exists():
+                    raise FileNotFoundError(f"--memory-from {_spec.memory_from}: no such memory folder")
+                memory = _method.load_memory(_spec.memory_from, embedder, _spec.memory_budget)
+                facts = _memory_facts(_spec.memory_from, memory)
+                foreign = [b for b in facts["benchmarks"] if b != _spec.benchmark]
+                facts["cross_environment"] = bool(foreign)
+                if foreign:
+                    print(f"worldmind run: stream {_spec.stream_id} starts from {_spec.memory_from}, which "
+                          f"holds {', '.join(foreign)} experience (cross-environment transfer)", file=sys.stderr)
+                memory_sources[_spec.stream_id] = facts
+                return memory
 
-        runners.append(StreamRunner(
-            spec, tasks=tasks, adapter=adapter, env_kind=config.env, method=method,
-            make_context=make_context, make_memory=make_memory, load_saved=load_saved,
-            stream_dir=stream_dir, wave=config.wave, on_episode=episode_done,
-        ))
-        bar.skip(len(stream_dir.read_episodes()))
+            def load_saved(path: str, _spec: StreamSpec = spec, _method: Any = method) -> Any:
+                return _load_saved(path, embedder, _spec, _method)
 
-    try:
-        outcomes = list(await asyncio.gather(*(r.run() for r in runners)))
-    finally:
-        bars.close()
-        for backend in owned:
-            await backend.aclose()
-        if cache is not None:
-            cache.close()
-    results = summarize_run([
-        {"stream_id": o.stream_id, "spec": o.spec.model_dump(mode="json"), "status": o.status,
-         "error": o.error, "records": o.records}
-        for o in outcomes
-    ])
-    results["run_id"] = run_id
-    results["finished_at"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
-    results["memory_sources"] = memory_sources
-    if memory_sources:
-        run_dir.update_manifest(memory_sources=memory_sources)
-    from worldmind_local.runner.schema import Manifest, Results
+            models, model_ids = role_backends(built, spec.planner, spec.judge_spec)
 
-    results = Results.model_validate(results).model_dump(mode="json")
-    Manifest.model_validate(run_dir.read_manifest())
-    run_dir.write_results(results)
-    return RunResult(run_dir, outcomes, results)
+            def make_context(view: Any, *, _models=models, _ids=model_ids, _seed=spec.seed,
+                             _cfg=method.config, _adapter=adapter) -> Any:
+                return EpisodeContext(models=_models, model_ids=_ids, memory=view, embedder=embedder,
+                                      run_id=run_id, seed=_seed, config=_cfg, adapter=_adapter,
+                                      data_dir=config.data_dir)
+
+            stream_dir = run_dir.stream(spec.stream_id)
+            tasks = tasks_by_stream[spec.stream_id]
+            bar = bars.add(spec.stream_id, total=len(tasks))
+
+            def episode_done(s: StreamSpec, data: dict[str, Any], _bar=bar) -> None:
+                _bar.update(data)
+                if on_episode:
+                    on_episode(s, data)
+
+            runners.append(StreamRunner(
+                spec, tasks=tasks, adapter=adapter, env_kind=config.env, method=method,
+                make_context=make_context, make_memory=make_memory, load_saved=load_saved,
+                stream_dir=stream_dir, wave=config.wave, on_episode=episode_done,
+            ))
+            bar.skip(len(stream_dir.read_episodes()))
+
+        try:
+            outcomes = list(await asyncio.gather(*(r.run() for r in runners)))
+        finally:
+            bars.close()
+            for backend in owned:
+                await backend.aclose()
+            if cache is not None:
+                cache.close()
+        results = summarize_run([
+            {"stream_id": o.stream_id, "spec": o.spec.model_dump(mode="json"), "status": o.status,
+             "error": o.error, "records": o.records}
+            for o in outcomes
+        ])
+        results["run_id"] = run_id
+        results["finished_at"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+        results["memory_sources"] = memory_sources
+        if memory_sources:
+            run_dir.update_manifest(memory_sources=memory_sources)
+        from worldmind_local.runner.schema import Manifest, Results
+
+        results = Results.model_validate(results).model_dump(mode="json")
+        Manifest.model_validate(run_dir.read_manifest())
+        run_dir.write_results(results)
+        return RunResult(run_dir, outcomes, results)

@@ -81,6 +81,8 @@ class StreamRunner:
         self.wave = wave
         self.on_episode = on_episode
         self._envs: list[Any] = []
+        self.gaps: list[Task] = []
+        self.initial_rows = 0
 
     # -- resume -----------------------------------------------------------------------------------
 
@@ -111,6 +113,10 @@ class StreamRunner:
                 raise ValueError(f"{self.dir.episodes_path}: episode index {rec.get('index')} is not in this "
                                  f"stream's tasks; the data or suite changed since the run started")
         records.sort(key=lambda r: order[r["index"]])
+        done = {r["index"] for r in records}
+        last = order[records[-1]["index"]] if records else -1
+        # Episodes missing before the last recorded one (a damaged line was quarantined): re-run alone.
+        self.gaps = [t for t in self.tasks[:last] if t.index not in done]
         if self.memory is not None and records:
             restored = self._saved_memory(records)
             if restored is not None:
@@ -136,6 +142,35 @@ class StreamRunner:
             if all(r["index"] in commits for r in records) and last in commits:
                 return saved.truncated(commits[last])
         return None
+
+    async def _rerun_gap(self, task: Task) -> dict[str, Any]:
+        """Re-run an episode whose line was lost (quarantined) on the memory as it stood before it.
+
+        The saved memory already holds that episode's committed experience (memory/ is saved before a
+        line is written), so nothing is committed again: the episode runs on a snapshot cut back to the
+        commit before it, and its entries' `kept` flags are decided on that snapshot.
+        """
+        if self.memory is None:
+            data, _ = await self._episode(task, 0, None)
+            data["experience"] = []
+            return data
+        commits = [list(c) for c in self.memory.commits]
+        at = next((i for i, c in enumerate(commits) if c[0] == task.index), None)
+        if at is None:  # no record of its commit: run it on the current memory and commit normally
+            log.warning("stream %s: episode %s has no commit in memory/; re-running it on the current memory",
+                        self.spec.stream_id, task.index)
+            data, experience = await self._episode(task, 0, self.memory)
+            await self._commit(data, experience, task.index)
+            return data
+        rows = commits[at - 1][1] if at > 0 else self.initial_rows
+        snapshot = self.memory.truncated(rows)
+        data, experience = await self._episode(task, 0, snapshot)
+        items = []
+        for entry in await snapshot.embed(experience):
+            kept = snapshot.add_embedded(entry)
+            items.append({**entry.model_dump(mode="json", exclude=set(EMBEDDING_FIELDS)), "kept": bool(kept)})
+        data["experience"] = items
+        return data
 
     async def _rebuild(self, records: list[dict[str, Any]]) -> None:
         """Fallback: the initial memory plus every recorded entry, re-embedded, in episode order."""
@@ -193,10 +228,20 @@ class StreamRunner:
         try:
             # Built here, not by the caller: a stream whose memory cannot load fails alone.
             self.memory = self.make_memory() if self.make_memory else None
+            self.initial_rows = len(self.memory) if self.memory is not None else 0
             records = await self.restore()
             outcome.records = records
             if self.memory is not None:
                 await self._save_memory()
+            if self.gaps:
+                log.warning("stream %s: re-running %d episode(s) whose records were quarantined: %s",
+                            self.spec.stream_id, len(self.gaps), [t.index for t in self.gaps])
+                order = {t.index: i for i, t in enumerate(self.tasks)}
+                for task in self.gaps:
+                    records.append(await self._rerun_gap(task))
+                    outcome.ran_episodes += 1
+                records.sort(key=lambda r: order[r["index"]])
+                self.dir.rewrite_episodes(records)
             self.dir.write_status("running", done=len(records), total=len(self.tasks))
             done = {r["index"] for r in records}
             pending = [t for t in self.tasks if t.index not in done]

@@ -21,7 +21,9 @@ from worldmind_local.methods.base import EpisodeContext
 from worldmind_local.methods.worldmind import WorldMind, WorldMindConfig
 
 ROLES = ("planner", "judge", "reflector", "distiller", "summarizer")
-Reply = str | Callable[[ChatRequest], str] | Exception
+# A reply that is (or whose function returns) a list of strings answers a request with n > 1: those
+# texts become the result's `texts` (a plain string stays one text, whatever n asks for).
+Reply = str | list[str] | Callable[[ChatRequest], "str | list[str]"] | Exception
 
 
 def plan_json(*actions: tuple[int, str, str], language_plan: str = "plan") -> str:
@@ -71,8 +73,9 @@ class ScriptedBackend:
             if isinstance(reply, Exception):
                 raise reply
             text = reply(request) if callable(reply) else reply
+            texts = list(text) if isinstance(text, list) else [text]
             prompt = sum(len(str(m["content"])) for m in request.messages) // 4
-            out.append(ChatResult([text], prompt, max(1, len(text) // 4), 0.01, model=self.model_id))
+            out.append(ChatResult(texts, prompt, max(1, sum(len(t) for t in texts) // 4), 0.01, model=self.model_id))
         return out
 
     async def aclose(self) -> None:

@@ -93,14 +93,23 @@ def test_wave_is_deterministic(tmp_path: Path, embedder):
 @pytest.mark.slow
 def test_failing_stream_does_not_stop_others(tmp_path: Path, embedder):
     good = _spec("base")
-    bad = StreamSpec(benchmark="eb_alfred", subset="spatial", planner=RANDOM, limit=2,
-                     memory_from=str(tmp_path / "no-such-memory"))
+    broken = tmp_path / "broken-memory"  # looks like a saved dataset, but cannot be read
+    broken.mkdir()
+    (broken / "dataset_info.json").write_text("{not json")
+    (broken / "state.json").write_text("{not json")
+    bad = StreamSpec(benchmark="eb_alfred", subset="spatial", planner=RANDOM, limit=2, memory_from=str(broken))
     res = _run([bad, good], tmp_path / "run", embedder)
     status = {o.stream_id: o.status for o in res.outcomes}
     assert status[good.stream_id] == "finished"
     assert status[bad.stream_id] == "failed"
     failed = [s for s in res.results["streams"] if s["status"] == "failed"]
     assert failed and failed[0]["error"]
+    # a memory source that does not exist is refused before the run folder is even created
+    missing = StreamSpec(benchmark="eb_alfred", subset="spatial", planner=RANDOM, limit=2,
+                         memory_from=str(tmp_path / "no-such-memory"))
+    with pytest.raises(FileNotFoundError, match="no such folder"):
+        _run([missing, good], tmp_path / "never", embedder)
+    assert not (tmp_path / "never").exists()
 
 
 @pytest.mark.slow
@@ -176,3 +185,23 @@ def test_a_partly_written_wave_is_rolled_back_and_rerun(tmp_path: Path, embedder
     _run([s], cut, embedder, wave=3)
     assert _episodes(cut, s.stream_id) == _episodes(ref, s.stream_id)
     assert _memory_rows(cut, s.stream_id) == _memory_rows(ref, s.stream_id)
+
+
+@pytest.mark.slow
+def test_a_damaged_middle_line_is_quarantined_and_only_that_episode_reruns(tmp_path: Path, embedder):
+    """Intact later records are never dropped: the damaged episode re-runs alone, on the memory as it
+    stood before it, and the stream ends equal to an uninterrupted one."""
+    s = _spec("base")
+    ref, hurt = tmp_path / "ref" / "run", tmp_path / "hurt" / "run"
+    _run([s], ref, embedder)
+    _run([s], hurt, embedder)
+    path = hurt / "streams" / s.stream_id / "episodes.jsonl"
+    lines = path.read_bytes().splitlines(keepends=True)
+    later = [json.loads(x)["index"] for x in lines[2:]]
+    path.write_bytes(lines[0] + b'{"index": 1, "broken\n' + b"".join(lines[2:]))
+    res = _run([s], hurt, embedder)
+    assert [o.ran_episodes for o in res.outcomes] == [1]  # only the damaged one
+    assert (path.parent / "episodes.quarantine.jsonl").exists()
+    assert _episodes(hurt, s.stream_id) == _episodes(ref, s.stream_id)
+    assert _memory_rows(hurt, s.stream_id) == _memory_rows(ref, s.stream_id)
+    assert later == [2]
