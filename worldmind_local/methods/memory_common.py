@@ -18,7 +18,6 @@
 
 from __future__ import annotations
 
-import json
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -59,6 +58,10 @@ __all__ = [
     "make_store",
     "load_store",
     "finish_stats",
+    "note_retrieved",
+    "think_of",
+    "action_line",
+    "backbone_model_id",
 ]
 
 SuccessSignal = Literal["env", "llm_judge"]
@@ -303,7 +306,3 @@ def load_store(path: str, embedder: Any, budget: int | None, config: MemoryConfi
 def finish_stats(ep: Episode, stats: MemoryStats) -> None:
     stats.stored = len(ep.experience)
     ep.record.method_stats = stats.model_dump(mode="json")
-
-
-def dumps(obj: Any) -> str:
-    return json.dumps(obj, ensure_ascii=False)

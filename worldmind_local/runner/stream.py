@@ -67,6 +67,7 @@ class StreamRunner:
         stream_dir: StreamDir,
         wave: int = 1,
         on_episode: Callable[[StreamSpec, dict[str, Any]], None] | None = None,
+        env_workers: Any = None,
     ) -> None:
         self.spec = spec
         self.tasks = tasks
@@ -81,6 +82,7 @@ class StreamRunner:
         self.wave = wave
         self.on_episode = on_episode
         self._envs: list[Any] = []
+        self.env_workers = env_workers  # envworkers.WorkerSettings: inline / process / ray (None: inline)
         self.gaps: list[Task] = []
         self.initial_rows = 0
 
@@ -114,7 +116,7 @@ class StreamRunner:
                                  f"stream's tasks; the data or suite changed since the run started")
         records.sort(key=lambda r: order[r["index"]])
         done = {r["index"] for r in records}
-        last = order[records[-1]["index"]] if records else -1
+        last = order[records[-1]["index"]] if records else 0
         # Episodes missing before the last recorded one (a damaged line was quarantined): re-run alone.
         self.gaps = [t for t in self.tasks[:last] if t.index not in done]
         if self.memory is not None and records:
@@ -203,8 +205,12 @@ class StreamRunner:
     # -- running ------------------------------------------------------------------------------------
 
     def _env(self, slot: int) -> Any:
+        """The env of a wave slot, made once: inline, or in a worker process / Ray actor of its own."""
+        from worldmind_local.envworkers import make_env_worker
+
         while len(self._envs) <= slot:
-            self._envs.append(self.adapter.make_env(self.env_kind))
+            self._envs.append(make_env_worker(self.adapter, self.env_kind, self.env_workers,
+                                              label=f"{self.spec.stream_id}/{len(self._envs)}"))
         return self._envs[slot]
 
     async def _episode(self, task: Task, slot: int, memory_view: Any) -> tuple[dict[str, Any], list[Any]]:
@@ -276,9 +282,9 @@ class StreamRunner:
                 done=len(outcome.records), total=len(self.tasks),
             )
         finally:
+            from worldmind_local.envworkers import close_env
+
             for env in self._envs:
-                close = getattr(env, "close", None)
-                if close:
-                    close()
+                await close_env(env)  # a worker's simulator shuts down; the loop keeps turning meanwhile
             outcome.seconds = time.perf_counter() - t0
         return outcome

@@ -137,7 +137,8 @@ def test_sigkill_then_resume_loses_and_repeats_nothing(tmp_path: Path):
     n_before = len(episodes.read_text().splitlines())
     assert 2 <= n_before < 8, "the run finished before it could be killed; raise latency_s"
     before = episodes.read_text().splitlines()
-    subprocess.run(cmd, env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    resumed = subprocess.run(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    assert resumed.returncode == 0, resumed.stderr[-3000:]
     after = episodes.read_text().splitlines()
     assert after[:n_before] == before  # nothing lost or rewritten
     assert [json.loads(x)["index"] for x in after] == list(range(8))  # nothing repeated
@@ -145,7 +146,8 @@ def test_sigkill_then_resume_loses_and_repeats_nothing(tmp_path: Path):
     # An uninterrupted run gives the same episodes and the same memory.
     ref = tmp_path / "ref" / "run"  # same run id (folder name): it is part of the provenance
     ref_cmd = [c if c != str(out) else str(ref) for c in cmd]
-    subprocess.run(ref_cmd, env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    done = subprocess.run(ref_cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    assert done.returncode == 0, done.stderr[-3000:]
     sid = "eb_alfred.base.worldmind.slow-random.s0"
     assert _episodes(out, sid) == _episodes(ref, sid)
     assert _memory_rows(out, sid) == _memory_rows(ref, sid)
