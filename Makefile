@@ -15,7 +15,7 @@ export TRANSFORMERS_OFFLINE=1
 export HF_DATASETS_OFFLINE=1
 export TOKENIZERS_PARALLELISM=false
 
-.PHONY: install demo test test-fast test-vllm venv-vllm bench lint clean
+.PHONY: install demo test test-fast test-vllm venv-vllm test-ray venv-ray bench lint clean
 
 install: $(STAMP)
 
@@ -85,5 +85,27 @@ test-vllm: install venv-vllm
 	WORLDMIND_REQUIRE_VLLM=1 VLLM_CPU_KVCACHE_SPACE=2 $(VPY) -m pytest -q -m vllm $$files; rc=$$?; \
 		if [ $$rc -eq 5 ]; then echo "no vllm tests collected"; rc=0; fi; exit $$rc
 
+# Ray env workers (--env-workers ray) in their own venv, so Ray and its ~40 dependencies stay out of .venv.
+# It sees .venv's packages through a .pth written first (site.addsitedir), so pip adds only what Ray needs
+# on top (~30 s) and the project is the same editable install. Idempotent through its stamp file.
+RVENV  ?= .venv-ray
+RPY     = $(RVENV)/bin/python
+RSTAMP  = $(RVENV)/.installed
+PURELIB = import sysconfig; print(sysconfig.get_paths()["purelib"])
+
+venv-ray: $(RSTAMP)
+
+$(RSTAMP): pyproject.toml Makefile
+	test -x $(PY) || $(MAKE) install
+	test -x $(RPY) || $(PYTHON) -m venv $(RVENV)
+	echo "import site; site.addsitedir('$$($(PY) -c '$(PURELIB)')')" > "$$($(RPY) -c '$(PURELIB)')/worldmind-main-venv.pth"
+	$(RPY) -m pip install -q 'ray[default]>=2.40,<3'
+	$(RPY) -c "import ray, worldmind_local.envworkers, datasets"
+	touch $(RSTAMP)
+
+# Ray's local cluster takes ~10 s to start on 2 cores, so its tests are marked `ray` and run here.
+test-ray: install venv-ray
+	$(RPY) -m pytest -q -m ray tests/worldmind_local/runner/test_envworkers_ray.py
+
 clean:
-	rm -rf $(VENV) .venv-vllm build *.egg-info .pytest_cache
+	rm -rf $(VENV) .venv-vllm .venv-ray build *.egg-info .pytest_cache

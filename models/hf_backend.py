@@ -17,6 +17,11 @@ one of two ways:
 Per-row schemas, sampling, seeds and max_tokens are handled by `models.constrained.RowsProcessor`
 either way, so one batch may mix planner and judge calls.
 
+A request with `n > 1` (BoN's N plans, SimuRA's policy and critic samples) takes n rows, row k seeded
+`seed + k`. Continuous batching prefills its prompt ONCE and copies the resulting key/value rows and
+first-token logits to its n rows (`RunningBatch.admit(rows=...)`), so n samples cost one prefill; the
+static path still encodes the prompt n times (it serves vision specs, whose prompts are image-heavy).
+
 System-prompt prefix cache: every agent role sends the same system message call after call (the
 planner's holds the whole action list), so the backend keeps the key/value tensors of recent system
 prefixes (LRU, `prefix_cache_entries`) and prefills only the rest of each prompt. A batch is laid out

@@ -137,7 +137,7 @@ async def run_episode(method: Method, task: Task, env: Env, ctx: EpisodeContext)
     ep = Episode(task, env, ctx, method.name)
     rec = ep.record
     t0 = time.perf_counter()
-    ep.obs = env.reset(task)
+    ep.obs = await _reset(env, task)
     ep.actions = list(env.actions)
     ep.observation_mode = resolve_observation(
         ctx.config.observation, env_images=ep.obs.image is not None,
@@ -222,7 +222,7 @@ async def _execute(method: Method, ep: Episode, index: int, actions: tuple[Plann
     for pos, planned in enumerate(actions):
         before = ep.obs
         history = list(ep.record.trajectory)
-        step = _step(ep, index, planned, substituted)
+        step = await _step(ep, index, planned, substituted)
         assert before is not None and ep.obs is not None
         method.after_step(ep, ExecutedAction(step, planned, pos, before, ep.obs, history))
         if ep.done or step.invalid:
@@ -230,10 +230,18 @@ async def _execute(method: Method, ep: Episode, index: int, actions: tuple[Plann
     await method.after_plan(ep)
 
 
-def _step(ep: Episode, index: int, planned: PlannedAction, substituted: bool) -> StepRecord:
+async def _reset(env: Env, task: Task) -> Observation:
+    """`env.areset` where the env lives off the event loop (a worker process, a Ray actor), else reset."""
+    areset = getattr(env, "areset", None)
+    return await areset(task) if areset is not None else env.reset(task)
+
+
+async def _step(ep: Episode, index: int, planned: PlannedAction, substituted: bool) -> StepRecord:
     rec, action_id = ep.record, planned.action_id
     t0 = time.perf_counter()
-    result = ep.env.step(action_id)  # an out-of-range id reaches only a `random`-policy env, as in EB
+    astep = getattr(ep.env, "astep", None)
+    # an out-of-range id reaches only a `random`-policy env, as in EB
+    result = await astep(action_id) if astep is not None else ep.env.step(action_id)
     env_seconds = time.perf_counter() - t0
     in_range = 0 <= action_id < len(ep.actions)
     name = ep.actions[action_id] if in_range else f"action id {action_id} (out of range)"

@@ -21,6 +21,9 @@ SUBCOMMAND_MODULES = (
     "worldmind_local.cli.models",
     "worldmind_local.cli.methods",
     "worldmind_local.cli.show",
+    "worldmind_local.cli.memory",
+    "worldmind_local.cli.transfer",
+    "worldmind_local.cli.report",
 )
 
 

@@ -106,9 +106,9 @@ def _run(args: argparse.Namespace) -> int:
     finally:
         replayer.close()
     print(f"{suite.describe()} on the {args.env} env", file=report)
-    print(f"{'subset':<22}{'episodes':>9}{'SR':>8}{'GC':>8}{'errors':>8}", file=report)
+    print(f"{'subset':<22}{'episodes':>9}{'SR %':>8}{'GC %':>8}{'errors':>8}", file=report)
     for name, score in replayer.scores.items():
-        print(f"{name:<22}{score.episodes:>9}{score.sr:>8.3f}{score.gc:>8.3f}{score.errors:>8}", file=report)
+        print(f"{name:<22}{score.episodes:>9}{100 * score.sr:>8.1f}{100 * score.gc:>8.1f}{score.errors:>8}", file=report)
     if replayer.skipped:
         print(f"{replayer.skipped} line(s) named no episode and were skipped (see their \"error\")", file=report)
     return 0

@@ -31,6 +31,12 @@ def register(sub: Any) -> None:
     p.add_argument("--memory-budget", type=_non_negative, default=None, metavar="N",
                    help="cap the repository at N experiences (MemN; unit: the method's budget_unit)")
     p.add_argument("--limit", type=_positive, default=None, metavar="N", help="first N episodes of each subset")
+    p.add_argument("--perturb", default=None, metavar="rename|poison:RATE",
+                   help="stress test: rename = object names in env feedback replaced by synonyms (actions and "
+                        "state untouched); poison:RATE = that share of the --memory-from repository replaced "
+                        "by wrong rules at load time (see worldmind_local/perturb)")
+    p.add_argument("--task-order-seed", default=None, metavar="S[,S...]",
+                   help="run each stream's episodes in a seeded permutation (one stream per seed given)")
     p.add_argument("--out", default=None, help="run folder (default runs/<benchmark>-<method>-<planner>)")
     p.add_argument("--plan", default=None, metavar="YAML", help="experiment file listing streams (see docs)")
     p.add_argument("--data-dir", default=None, help="EmbodiedBench data (default $WORLDMIND_DATA, then "
@@ -41,13 +47,28 @@ def register(sub: Any) -> None:
     p.add_argument("--suite-size", "--per-subset", dest="suite_size", type=_positive, default=50,
                    help="episodes per subset of the generated suite (default 50)")
     p.add_argument("--env", default="twin", choices=["twin", "embodiedbench"], help="simulator backend")
+    p.add_argument("--env-workers", default="auto", choices=["auto", "inline", "process", "ray"],
+                   help="where each stream's env runs: on the event loop, in a process of its own, or as a "
+                        "Ray actor (default auto: inline for the twins, process for --env embodiedbench)")
+    p.add_argument("--ray-address", default=None, metavar="ADDR",
+                   help="Ray cluster for --env-workers ray (default: $RAY_ADDRESS, else a local cluster)")
+    p.add_argument("--env-step-timeout", type=float, default=None, metavar="S",
+                   help="seconds before a worker's step counts as hung (default per benchmark, 60)")
+    p.add_argument("--env-failure", default="replay", choices=["replay", "error"],
+                   help="a worker that dies or hangs is restarted; replay: the episode goes on where it was "
+                        "(its steps re-run and checked); error: the episode is recorded as an error")
+    p.add_argument("--env-worker-option", action="append", default=[], metavar="KEY=VALUE",
+                   help="worker setting, repeatable: displays=:0,:1 gpus=0,1 ray_num_gpus=0.25 "
+                        "ray_num_cpus=1 ray_resources=display:1 frame_codec=png max_restarts=2 (see README)")
     add_method_flags(p)
     p.add_argument("--wave", type=int, default=1, metavar="N",
                    help="N episodes of a stream at once on a memory snapshot (deviation from the paper)")
     p.add_argument("--max-concurrency", type=_positive, default=None, metavar="N",
                    help="bound in-flight model requests (>= 1; default unbounded)")
     p.add_argument("--no-cache", action="store_true", help="do not record responses in OUT/cache.sqlite")
-    p.add_argument("--progress", choices=["auto", "bars", "lines"], default="auto")
+    p.add_argument("--progress", choices=["auto", "bars", "lines", "streams"], default="auto",
+                   help="one overall bar (auto/bars on a terminal, plain lines otherwise); streams: also "
+                        "one bar (or one line per episode) per stream")
     p.set_defaults(func=main)
 
 
@@ -111,6 +132,17 @@ def method_options(args: argparse.Namespace) -> dict[str, Any]:
     return {k[4:]: v for k, v in vars(args).items() if k.startswith("opt_") and v is not None}
 
 
+def _key_values(items: list[str], flag: str) -> dict[str, str]:
+    """`KEY=VALUE` flags as a dict (values stay strings; the settings model parses them)."""
+    out: dict[str, str] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ValueError(f"{flag} expects KEY=VALUE, got {item!r}")
+        out[key.strip()] = value.strip()
+    return out
+
+
 def _int_list(value: str, flag: str) -> list[int]:
     try:
         return [int(x) for x in value.split(",") if x.strip()]
@@ -130,6 +162,9 @@ def build_config(args: argparse.Namespace) -> tuple[Any, str]:
     run_fields: dict[str, Any] = {
         "suite": args.suite, "data_dir": args.data_dir, "suite_seed": args.suite_seed,
         "suite_size": args.suite_size, "env": args.env, "wave": args.wave, "cache": not args.no_cache,
+        "env_workers": args.env_workers, "ray_address": args.ray_address,
+        "env_step_timeout": args.env_step_timeout, "env_failure": args.env_failure,
+        "env_worker_options": _key_values(args.env_worker_option, "--env-worker-option"),
     }
     if args.plan:
         plan_run, streams = load_plan_file(args.plan)
@@ -165,7 +200,25 @@ def build_config(args: argparse.Namespace) -> tuple[Any, str]:
             memory_budget=args.memory_budget, limit=args.limit, options=options,
         )
         out = args.out or f"runs/{args.benchmark}-{'+'.join(methods)}-{args.planner.split(':', 1)[-1]}"
-    return RunConfig(streams=streams, **run_fields), out
+    return RunConfig(streams=_with_stress_tests(streams, args), **run_fields), out
+
+
+def _with_stress_tests(streams: list[Any], args: argparse.Namespace) -> list[Any]:
+    """--perturb and --task-order-seed applied to every stream (one copy per task-order seed)."""
+    from worldmind_local.runner.config import StreamSpec
+
+    perturb, order_text = getattr(args, "perturb", None), getattr(args, "task_order_seed", None)
+    orders = _int_list(order_text, "--task-order-seed") if order_text else []
+    if perturb is None and not orders:
+        return streams
+    out = []
+    for spec in streams:
+        base = spec.model_dump()
+        if perturb is not None:
+            base["perturb"] = perturb
+        for order in orders or [base.get("task_order_seed")]:
+            out.append(StreamSpec(**{**base, "task_order_seed": order}))
+    return out
 
 
 def main(args: argparse.Namespace) -> int:
@@ -179,9 +232,12 @@ def main(args: argparse.Namespace) -> int:
     except (ValueError, KeyError) as exc:
         print(f"worldmind run: {exc}", file=sys.stderr)
         return 2
-    progress = {"auto": None, "bars": True, "lines": False}[args.progress]
+    from worldmind_local.runner.progress import quiet_model_loading
+
+    quiet_model_loading()  # no "Loading weights" bars from transformers/sentence-transformers by default
+    progress = {"auto": None, "bars": True, "lines": False, "streams": "streams"}[args.progress]
     print(f"worldmind run: {len(config.streams)} stream(s) -> {out}", file=sys.stderr)
     result = asyncio.run(run_experiment(config, out, max_concurrency=args.max_concurrency, progress=progress))
-    print(format_results(result.results))
+    print(format_results(result.results, env=config.env))
     print(f"\nrun folder: {result.run_dir.root}  (results.json, streams/*/episodes.jsonl, streams/*/memory/)")
     return 1 if result.failed else 0

@@ -83,7 +83,9 @@ MODULE_TEXT = {
 
 
 class SimuRAConfig(MethodConfig):
-    """§4 (4) defaults: the reference's sample counts, temperatures and search shape."""
+    """§4 (4) defaults: the reference's sample counts, temperatures and search shape. The base config's
+    `temperature`, `planner_max_tokens` and `max_plan_actions` do not apply: the policy has its own
+    `policy_*` settings and a plan is always one action."""
 
     n_shots: int | None = Field(0, ge=0, le=20, description="in-context examples (SimuRA default 0: its identity has none)")
     policy_samples: int = Field(20, ge=1, le=64, description="SimuRA: policy samples per step (one request, n)")

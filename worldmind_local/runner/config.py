@@ -11,12 +11,18 @@ import hashlib
 import json
 import re
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-__all__ = ["StreamSpec", "RunConfig", "load_plan_file", "expand_streams", "method_class", "canonical_method"]
+__all__ = ["StreamSpec", "RunConfig", "load_plan_file", "expand_streams", "method_class", "canonical_method",
+           "STREAM_REF"]
+
+# RunConfig fields that say how a run executes, not what it computes: outside its identity.
+EXECUTION_FIELDS = ("env_workers", "ray_address", "env_step_timeout", "env_failure", "env_worker_options")
+
+STREAM_REF = "stream:"   # memory_from "stream:<id>": seed from another stream of the same run, once it finished
 
 
 def method_class(name: str) -> Any:
@@ -62,16 +68,47 @@ class StreamSpec(BaseModel):
     judge: str | None = None  # None -> same as planner
     seed: int = 0
     memory_from: str | None = None
+    # What memory_from held when the run was set up (content hash of its rows): the run's identity, so the
+    # same repository typed as another path (relative, from another folder, its export) is the same run.
+    memory_sha256: str | None = None
     memory_budget: int | None = Field(None, ge=0)
     limit: int | None = Field(None, ge=1)
     options: dict[str, Any] = Field(default_factory=dict)
+    # The paper's stress tests (worldmind_local/perturb): "rename" or "poison:RATE" (0 < RATE <= 1), and a
+    # seeded permutation of the episode order. Part of the stream id only when set.
+    perturb: str | None = None
+    task_order_seed: int | None = None
+
+    @field_validator("perturb")
+    @classmethod
+    def _perturb(cls, v: str | None) -> str | None:
+        from worldmind_local.perturb.poison import parse_perturb
+
+        return parse_perturb(v)
 
     @model_validator(mode="after")
     def _canonical(self) -> StreamSpec:
         method, options = canonical_method(self.method, self.options)
         object.__setattr__(self, "method", method)
         object.__setattr__(self, "options", options)
+        if self.memory_from and self.memory_sha256 is None and not self.memory_from.startswith(STREAM_REF):
+            from worldmind_local.memory.sources import source_key
+
+            object.__setattr__(self, "memory_sha256", source_key(self.memory_from))
         return self
+
+    @property
+    def memory_key(self) -> str | None:
+        """How the stream's seed memory enters its identity: its content hash when it could be read, else
+        the reference as given (`stream:<id>`, or a path the preflight will reject in one line)."""
+        return f"sha256:{self.memory_sha256}" if self.memory_sha256 else self.memory_from
+
+    @property
+    def seed_stream(self) -> str | None:
+        """The stream of the same run this one seeds from (`memory_from: stream:<id>`), if any."""
+        if self.memory_from and self.memory_from.startswith(STREAM_REF):
+            return self.memory_from[len(STREAM_REF):]
+        return None
 
     @property
     def judge_spec(self) -> str:
@@ -99,6 +136,9 @@ class StreamSpec(BaseModel):
             base += f".j-{short(self.judge_spec)}"
         base += f".s{self.seed}"
         extra = self.model_dump(include={"memory_from", "memory_budget", "options"})
+        extra["memory_from"] = self.memory_key
+        extra.update({k: v for k, v in (("perturb", self.perturb), ("task_order_seed", self.task_order_seed))
+                      if v is not None})
         if any(v not in (None, {}) for v in extra.values()):
             base += "." + hashlib.sha256(json.dumps(extra, sort_keys=True).encode()).hexdigest()[:8]
         return re.sub(r"[^A-Za-z0-9._-]+", "_", base)
@@ -116,6 +156,33 @@ class RunConfig(BaseModel):
     env: str = "twin"
     wave: int = Field(1, ge=1)
     cache: bool = True
+    # Where each stream's env lives (worldmind_local.envworkers). How envs are stepped never changes an
+    # episode, so these are execution settings, outside identity(): a run may resume under another kind.
+    env_workers: Literal["auto", "inline", "process", "ray"] = "auto"
+    ray_address: str | None = None
+    env_step_timeout: float | None = Field(None, gt=0)
+    env_failure: Literal["replay", "error"] = "replay"
+    env_worker_options: dict[str, Any] = Field(default_factory=dict)
+
+    @field_validator("env_worker_options")
+    @classmethod
+    def _worker_options(cls, v: dict[str, Any]) -> dict[str, Any]:
+        from worldmind_local.envworkers import WorkerSettings
+
+        reserved = sorted(set(v) & {"kind", "ray_address", "step_timeout", "failure", "wrappers"})
+        if reserved:
+            raise ValueError(f"env_worker_options: {', '.join(reserved)} have their own settings "
+                             f"(env_workers, ray_address, env_step_timeout, env_failure)")
+        WorkerSettings(**v)  # unknown or malformed options fail here, before any work
+        return v
+
+    def worker_settings(self) -> Any:
+        """The `WorkerSettings` every StreamRunner of this run makes its envs with."""
+        from worldmind_local.envworkers import WorkerSettings
+
+        return WorkerSettings(kind=self.env_workers, ray_address=self.ray_address,
+                              step_timeout=self.env_step_timeout, failure=self.env_failure,
+                              **self.env_worker_options)
 
     @field_validator("streams")
     @classmethod
@@ -128,9 +195,36 @@ class RunConfig(BaseModel):
             raise ValueError(f"duplicate streams: {', '.join(dupes)}")
         return v
 
+    @model_validator(mode="after")
+    def _seeds_resolve(self) -> RunConfig:
+        """Every `stream:<id>` names another stream of this run, and no stream waits on itself."""
+        by_id = {s.stream_id: s for s in self.streams}
+        for spec in self.streams:
+            seen = [spec.stream_id]
+            current = spec
+            while current.seed_stream is not None:
+                if current.seed_stream not in by_id:
+                    raise ValueError(f"stream {current.stream_id}: memory_from {current.memory_from} names no "
+                                     f"stream of this run; known: {', '.join(by_id)}")
+                if current.seed_stream in seen:
+                    raise ValueError(f"streams {' -> '.join([*seen, current.seed_stream])} seed from each other")
+                seen.append(current.seed_stream)
+                current = by_id[current.seed_stream]
+        return self
+
     def identity(self) -> dict[str, Any]:
-        """The part of the config a resumed run must share with the original."""
-        return self.model_dump(exclude={"cache"})
+        """The part of the config a resumed run must share with the original. A seed memory counts by
+        its content hash, not by the path typed for it."""
+        data = self.model_dump(exclude={"cache", *EXECUTION_FIELDS})
+        for stream in data["streams"]:
+            if stream.get("memory_sha256"):
+                stream.pop("memory_from", None)
+            else:
+                stream.pop("memory_sha256", None)   # runs without one keep their earlier identity
+            for key in ("perturb", "task_order_seed"):   # unset stress tests: runs keep their earlier identity
+                if stream.get(key) is None:
+                    stream.pop(key, None)
+        return data
 
 
 def split_list(value: str | None) -> list[str]:

@@ -15,9 +15,6 @@ from typing import Any
 
 __all__ = ["check_out_path", "check_model_specs", "check_memory_source"]
 
-_DATASET_MARKERS = ("dataset_info.json", "dataset_dict.json")
-
-
 def check_out_path(out: str | Path) -> Path:
     """The run folder can be created (or is an existing, writable folder). Returns it."""
     path = Path(out).expanduser()
@@ -81,24 +78,10 @@ def check_model_specs(addresses: list[str]) -> dict[str, Any]:
     return {address: _check_one(address, known) for address in dict.fromkeys(addresses)}
 
 
-def _memory_folders_under(path: Path) -> list[Path]:
-    return sorted(p for p in path.glob("streams/*/memory") if p.is_dir())
-
-
 def check_memory_source(path: str | Path) -> Path:
-    """`--memory-from` names a saved repository folder (what a run writes as `streams/<id>/memory`)."""
-    source = Path(path).expanduser()
-    if not source.exists():
-        raise FileNotFoundError(f"--memory-from {source}: no such folder")
-    if not source.is_dir():
-        raise ValueError(f"--memory-from {source} is a file; give the repository folder (a run's "
-                         "streams/<id>/memory)")
-    if any((source / marker).is_file() for marker in _DATASET_MARKERS):
-        return source
-    inside = _memory_folders_under(source)
-    if inside:
-        shown = ", ".join(str(p) for p in inside[:3]) + (", ..." if len(inside) > 3 else "")
-        raise ValueError(f"--memory-from {source} is a run folder, not a repository; pick one of its "
-                         f"memories: {shown}")
-    raise ValueError(f"--memory-from {source} does not look like a repository folder (no "
-                     f"{' or '.join(_DATASET_MARKERS)}); give a run's streams/<id>/memory")
+    """`--memory-from` names something a memory can be read from: a run folder with one stream, a stream's
+    `memory/`, an export, parquet, or `hub:OWNER/NAME[@REV]` in the local Hub cache. Returns where it
+    resolved to. Reads names and markers only; the content is checked when the stream loads it."""
+    from worldmind_local.memory.sources import locate
+
+    return locate(str(path))[1]

@@ -52,6 +52,9 @@ def _suite_tasks(config: RunConfig, spec: StreamSpec) -> tuple[list[Task], str]:
     tasks = suite.tasks(spec.subset)
     if spec.limit is not None:
         tasks = tasks[: spec.limit]
+    from worldmind_local.perturb import permute
+
+    tasks = permute(tasks, spec.task_order_seed)  # --task-order-seed: the same episodes in a seeded order
     return tasks, suite.describe()
 
 
@@ -100,18 +103,65 @@ def _protocol_facts(spec: StreamSpec, env: str) -> dict[str, Any]:
 
 def _load_saved(path: str, embedder: Any, spec: StreamSpec, method: Any) -> Any:
     """A stream's own saved memory/, with its commit log (unlike a --memory-from seed)."""
-    from worldmind_local.memory import WorldKnowledgeRepository
-
-    cfg = method.config
-    return WorldKnowledgeRepository.load(path, embedder, budget=spec.memory_budget,
-                                         budget_unit=getattr(cfg, "budget_unit", "entries"))
+    cls = type(method.new_memory(embedder, spec.memory_budget))  # the method's own memory class
+    return cls.load(path, embedder, budget=spec.memory_budget,
+                    budget_unit=getattr(method.config, "budget_unit", "entries"))
 
 
-def _memory_facts(path: str, memory: Any) -> dict[str, Any]:
-    """What a --memory-from source holds: where, how many entries, from which benchmarks."""
-    entries = memory.entries() if memory is not None and hasattr(memory, "entries") else []
-    return {"path": str(Path(path).resolve()), "entries": len(entries),
-            "benchmarks": sorted({e.benchmark for e in entries})}
+def _memory_facts(source: Any, spec: StreamSpec) -> dict[str, Any]:
+    """What a --memory-from source held (a `MemorySource`): content hash, resolved location, kind,
+    entry counts, provenance, and whether it comes from another benchmark."""
+    facts = source.facts()
+    facts["benchmarks"] = list(source.provenance.get("benchmarks") or [])
+    facts["cross_environment"] = any(b != spec.benchmark for b in facts["benchmarks"])
+    facts["label"] = source.label
+    return facts
+
+
+def _seed_memory(spec: StreamSpec, method: Any, embedder: Any, run_dir: RunDir,
+                 finished: Mapping[str, str]) -> tuple[Any, Any]:
+    """A stream's seed memory and its `MemorySource`: another stream's `memory/` once that stream has
+    finished (`stream:<id>`), or anything `--memory-from` accepts; the content must be what the run was
+    set up with (`memory_sha256`), so a resumed run cannot silently start from a changed repository."""
+    from worldmind_local.memory.sources import load_for_method
+
+    assert spec.memory_from is not None
+    if spec.seed_stream is not None:
+        state = finished.get(spec.seed_stream)
+        if state != "finished":
+            raise ValueError(f"seed stream {spec.seed_stream} {state or 'did not run'}; stream {spec.stream_id} "
+                             "starts only from a finished stream's memory")
+        path = run_dir.stream(spec.seed_stream).memory_path
+        if not path.is_dir():
+            raise ValueError(f"seed stream {spec.seed_stream} has no memory/ (its method keeps no global memory)")
+        memory, source = load_for_method(spec.memory_from, method, embedder, spec.memory_budget,
+                                         kind="stream", path=path.resolve())
+    else:
+        memory, source = load_for_method(spec.memory_from, method, embedder, spec.memory_budget)
+    if spec.memory_sha256 and source.sha256 != spec.memory_sha256:
+        raise ValueError(f"--memory-from {spec.memory_from}: its content changed since this run was set up "
+                         f"(sha256 {source.sha256[:12]}, the run expects {spec.memory_sha256[:12]})")
+    return memory, source
+
+
+def _in_seed_order(runners: list[StreamRunner], finished: dict[str, str]) -> list[Any]:
+    """One coroutine per stream, all concurrent, except that a stream seeded from another stream
+    (`memory_from: stream:<id>`) starts when that one has returned: on the first run and on resume alike
+    (a finished source returns at once, its memory read from disk)."""
+    done = {r.spec.stream_id: asyncio.Event() for r in runners}
+
+    async def one(runner: StreamRunner) -> StreamOutcome:
+        try:
+            source = runner.spec.seed_stream
+            if source is not None:
+                await done[source].wait()
+            outcome = await runner.run()
+            finished[runner.spec.stream_id] = outcome.status
+            return outcome
+        finally:
+            done[runner.spec.stream_id].set()
+
+    return [one(r) for r in runners]
 
 
 async def run_experiment(
@@ -159,7 +209,7 @@ async def run_experiment(
     check_out_path(out)
     check_model_specs([a for a in addresses if a not in (backends or {})])
     for spec in config.streams:
-        if spec.memory_from:
+        if spec.memory_from and spec.seed_stream is None:
             check_memory_source(spec.memory_from)
     with run_dir.lock():  # one process per run folder; a second one gets one line naming the holder
         resumed = run_dir.open(config.identity(), manifest)
@@ -191,26 +241,29 @@ async def run_experiment(
         bars = Progress(enabled=progress)
         runners: list[StreamRunner] = []
         memory_sources: dict[str, Any] = {}
+        finished: dict[str, str] = {}   # stream id -> status, once its run() returned (seeds wait for it)
         for spec in config.streams:
             from worldmind_local.methods.base import EpisodeContext
+            from worldmind_local.perturb import perturbed_adapter, with_poison
 
-            adapter = BENCHMARKS.get(spec.benchmark)
+            adapter = perturbed_adapter(BENCHMARKS.get(spec.benchmark), spec.perturb)  # --perturb rename
             method = METHODS.get(spec.method)(spec.method_config())
 
             def make_memory(_spec: StreamSpec = spec, _method: Any = method) -> Any:
                 if not _spec.memory_from:
                     return _method.new_memory(embedder, _spec.memory_budget)
-                if not Path(_spec.memory_from).exists():
-                    raise FileNotFoundError(f"--memory-from {_spec.memory_from}: no such memory folder")
-                memory = _method.load_memory(_spec.memory_from, embedder, _spec.memory_budget)
-                facts = _memory_facts(_spec.memory_from, memory)
-                foreign = [b for b in facts["benchmarks"] if b != _spec.benchmark]
-                facts["cross_environment"] = bool(foreign)
-                if foreign:
+                memory, source = _seed_memory(_spec, _method, embedder, run_dir, finished)
+                facts = _memory_facts(source, _spec)
+                if facts["cross_environment"]:
+                    foreign = [b for b in facts["benchmarks"] if b != _spec.benchmark]
                     print(f"worldmind run: stream {_spec.stream_id} starts from {_spec.memory_from}, which "
                           f"holds {', '.join(foreign)} experience (cross-environment transfer)", file=sys.stderr)
                 memory_sources[_spec.stream_id] = facts
                 return memory
+
+            make_memory = with_poison(  # --perturb poison:RATE: applied to the memory make_memory returns
+                make_memory, spec.perturb, seed=spec.seed, benchmark=spec.benchmark, embedder=embedder,
+                stream_root=run_dir.stream(spec.stream_id).root, stream_id=spec.stream_id)
 
             def load_saved(path: str, _spec: StreamSpec = spec, _method: Any = method) -> Any:
                 return _load_saved(path, embedder, _spec, _method)
@@ -236,11 +289,12 @@ async def run_experiment(
                 spec, tasks=tasks, adapter=adapter, env_kind=config.env, method=method,
                 make_context=make_context, make_memory=make_memory, load_saved=load_saved,
                 stream_dir=stream_dir, wave=config.wave, on_episode=episode_done,
+                env_workers=config.worker_settings(),
             ))
             bar.skip(len(stream_dir.read_episodes()))
 
         try:
-            outcomes = list(await asyncio.gather(*(r.run() for r in runners)))
+            outcomes = list(await asyncio.gather(*_in_seed_order(runners, finished)))
         finally:
             bars.close()
             for backend in owned:
@@ -251,7 +305,7 @@ async def run_experiment(
             {"stream_id": o.stream_id, "spec": o.spec.model_dump(mode="json"), "status": o.status,
              "error": o.error, "records": o.records}
             for o in outcomes
-        ])
+        ], memory_sources=memory_sources)
         results["run_id"] = run_id
         results["finished_at"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
         results["memory_sources"] = memory_sources

@@ -20,9 +20,9 @@ class StreamMetrics(BaseModel):
     model_config = ConfigDict(extra="forbid")
     episodes: int
     SR: float | None
-    SR_ci95: list[float] | None
+    SR_ci95: list[float] | None     # Wilson 95% interval of SR (percent); see worldmind_local/metrics.py
     GC: float | None
-    GC_ci95: list[float] | None
+    GC_ci95: list[float] | None     # percentile bootstrap 95% interval of GC over episodes (percent)
     taxonomy: dict[str, int]
     mean_steps: float | None
     judge_calls: int = 0
@@ -53,9 +53,12 @@ class StreamResult(BaseModel):
     judge: str | None = None
     seed: int = 0
     memory_from: str | None = None
+    memory_sha256: str | None = None
     memory_budget: int | None = None
     limit: int | None = None
     options: dict[str, Any] = Field(default_factory=dict)
+    perturb: str | None = None            # "rename" | "poison:RATE" (worldmind_local/perturb)
+    task_order_seed: int | None = None    # seeded permutation of the episode order
     metrics: StreamMetrics
 
 
@@ -70,6 +73,10 @@ class TableRow(BaseModel):
     memory_budget: int | None
     subsets: dict[str, dict[str, Any]]
     avg: dict[str, float | None]
+    perturb: str | None = None
+    task_order_seed: int | None = None
+    memory_from: str | None = None          # seed memory: source model/benchmark#sha256[:8]
+    gain: dict[str, float | None] | None = None   # avg minus the from-scratch row's avg
 
 
 class Results(BaseModel):

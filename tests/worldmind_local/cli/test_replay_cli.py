@@ -16,7 +16,7 @@ def test_expert_replay_writes_results_and_summary(tmp_path, capsys):
     lines = [json.loads(x) for x in out.read_text().splitlines()]
     assert len(lines) == 6 and all(r["success"] for r in lines)
     summary = capsys.readouterr().out
-    assert "SR" in summary and "long_horizon" in summary and "1.000" in summary
+    assert "SR %" in summary and "long_horizon" in summary and "100.0" in summary
 
 
 def test_plans_from_stdin_with_a_bad_line(monkeypatch, capsys):

@@ -165,3 +165,15 @@ def test_same_seed_same_run_on_the_seeded_random_backend(kit, task) -> None:
     first, again, other = run(3), run(3), run(4)
     assert first == again and first[0] != other[0]
     assert len(first[0]) >= 2
+
+
+def test_the_random_backend_answers_n_distinct_seeded_texts() -> None:
+    import asyncio
+
+    from models.base import ChatRequest, Sampling
+    from models.random_backend import RandomBackend
+
+    request = ChatRequest(messages=[{"role": "user", "content": "plan"}], sampling=Sampling(n=5, seed=3))
+    first = asyncio.run(RandomBackend().complete([request]))[0].texts
+    again = asyncio.run(RandomBackend().complete([request]))[0].texts
+    assert len(first) == 5 and len(set(first)) == 5 and first == again
