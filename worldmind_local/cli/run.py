@@ -26,8 +26,10 @@ def register(sub: Any) -> None:
     p.add_argument("--planner", default=DEFAULT_MODEL, help=f"model spec backend:name (default {DEFAULT_MODEL})")
     p.add_argument("--judge", default=None, help="model spec for judge/reflector (default: the planner)")
     p.add_argument("--seed", default="0", help="comma list of seeds (one stream per seed)")
-    p.add_argument("--memory-from", default=None, metavar="PATH",
-                   help="start from this WKR (a memory/ folder of another run): transfer experiments")
+    p.add_argument("--memory-from", default=None, metavar="SOURCE",
+                   help="start from this repository (transfer): a run folder, a stream's memory/, an export, "
+                        "a parquet file or folder, hub:OWNER/NAME[@REV] (local Hub cache), or stream:<id>; "
+                        "recorded by content hash")
     p.add_argument("--memory-budget", type=_non_negative, default=None, metavar="N",
                    help="cap the repository at N experiences (MemN; unit: the method's budget_unit)")
     p.add_argument("--limit", type=_positive, default=None, metavar="N", help="first N episodes of each subset")
