@@ -32,6 +32,7 @@ from worldmind_local.agent.plan import (
     screen_ids,
 )
 from worldmind_local.env import Env, Observation, Task
+from worldmind_local.envworkers import EnvWorkerError
 from worldmind_local.records import EpisodeRecord, PlanRecord, StepRecord, TokenCount, taxonomy_label
 
 if TYPE_CHECKING:
@@ -155,6 +156,9 @@ async def run_episode(method: Method, task: Task, env: Env, ctx: EpisodeContext)
                 break
             await _planning_step(method, ep, policy)
         await method.finish(ep)
+    except EnvWorkerError as exc:  # the env's worker died or hung and the failure policy gave up
+        rec.error = f"{type(exc).__name__}: {exc}"
+        rec.end_reason = "error"
     except ContextLengthError as exc:  # deterministic: the episode outgrew the model's context
         rec.error = str(exc)
         if not rec.success:  # a success stays a success even if its distillation did not fit

@@ -42,9 +42,17 @@ def _settle(future: asyncio.Future[None]) -> None:
         future.set_result(None)
 
 
+def _exit_on_term(signum: int, frame: Any) -> None:
+    raise SystemExit(128 + signum)
+
+
 def _serve(conn: Connection, spec: EnvSpec, env_vars: dict[str, str], codec: str) -> None:
-    """The worker's main loop (runs in the spawned process)."""
+    """The worker's main loop (runs in the spawned process). Its own session, so the runner can kill
+    it together with whatever the simulator started (a Unity player), and Ctrl-C in the terminal reaches
+    only the runner, which closes the workers in order; SIGTERM still runs the env's close."""
+    os.setsid()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _exit_on_term)
     os.environ.update(env_vars)
     from worldmind_local.envworkers._host import EnvHost
 
@@ -181,36 +189,60 @@ class ProcessTransport:
         return self._read(op)
 
     def kill(self) -> None:
+        """SIGKILL to the worker's whole process group (the simulator's own processes too)."""
         if not self._conn.closed:
             self._disarm()
-        if self._proc.is_alive():
-            self._proc.kill()
+        if self._proc.pid is not None:
+            try:
+                os.killpg(self._proc.pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):  # not yet in its own group, or already gone
+                if self._proc.is_alive():
+                    self._proc.kill()
         self._proc.join(5)
         self._conn.close()
 
     async def aclose(self, timeout: float = 30.0) -> None:
-        """Ask the worker to close its env (a simulator shuts its player down), then make sure it is gone."""
-        if self._proc.is_alive() and not self._conn.closed:
-            try:
+        """Ask the worker to close its env (a simulator shuts its player down), wait for it to exit while
+        discarding any late reply (a worker blocked sending one would never read the request), then
+        kill its process group, also when this is cancelled (Ctrl-C during shutdown)."""
+        try:
+            if self._proc.is_alive() and not self._conn.closed:
+                self._disarm()
+                self._conn.send(("close", ()))
+                loop = asyncio.get_running_loop()
+                gone: asyncio.Future[None] = loop.create_future()
+                loop.add_reader(self._proc.sentinel, _settle, gone)
+                loop.add_reader(self._conn.fileno(), self._drain)
+                try:
+                    await asyncio.wait_for(gone, timeout)
+                except asyncio.TimeoutError:
+                    pass
+                finally:
+                    loop.remove_reader(self._proc.sentinel)
+                    loop.remove_reader(self._conn.fileno())
+        except OSError:
+            pass
+        finally:
+            self.kill()
+
+    def _drain(self) -> None:
+        try:
+            while self._conn.poll(0):
+                self._conn.recv()
+        except (EOFError, OSError, pickle.UnpicklingError):
+            asyncio.get_running_loop().remove_reader(self._conn.fileno())
+
+    def close(self, timeout: float = 30.0) -> None:
+        """Blocking form of `aclose`."""
+        try:
+            if self._proc.is_alive() and not self._conn.closed:
+                self._disarm()
                 self._conn.send(("close", ()))
                 deadline = time.monotonic() + timeout
                 while self._proc.is_alive() and time.monotonic() < deadline:
-                    ready = self._arm()  # the sentinel (or EOF) wakes it when the worker has gone
-                    timer = ready.get_loop().call_later(max(0.0, deadline - time.monotonic()), _settle, ready)
-                    try:
-                        await ready
-                    finally:
-                        timer.cancel()
-                        self._waiter = None
-            except OSError:
-                pass
-        self.kill()
-
-    def close(self, timeout: float = 30.0) -> None:
-        if self._proc.is_alive() and not self._conn.closed:
-            try:
-                self._conn.send(("close", ()))
-                self._proc.join(timeout)
-            except OSError:
-                pass
-        self.kill()
+                    if self._conn.poll(0.05):
+                        self._conn.recv()
+        except (EOFError, OSError, pickle.UnpicklingError):
+            pass
+        finally:
+            self.kill()

@@ -127,7 +127,8 @@ class RayTransport:
             await asyncio.wait_for(asyncio.wrap_future(self._actor.close.remote().future()), timeout)
         except Exception:  # dead or hung: the kill below is what matters
             pass
-        self.kill()
+        finally:  # also when cancelled (Ctrl-C during shutdown)
+            self.kill()
 
     def close(self, timeout: float = 30.0) -> None:
         try:
