@@ -56,7 +56,8 @@ def test_worldmind_episode_with_real_smollm2(tmp_path: Path):
 
     from models.specs import make_backend
     from worldmind_local.memory import Embedder, WorldKnowledgeRepository
-    from worldmind_local.methods.base import EpisodeContext, MethodConfig
+    from worldmind_local.agent.driver import run_episode
+    from worldmind_local.methods.base import EpisodeContext
     from worldmind_local.methods.worldmind import WorldMind
 
     adapter = BENCHMARKS.get("eb_navigation")
@@ -65,16 +66,25 @@ def test_worldmind_episode_with_real_smollm2(tmp_path: Path):
     embedder = Embedder()
     memory = WorldKnowledgeRepository(embedder)
     models = dict.fromkeys(("planner", "judge", "reflector", "distiller", "summarizer"), backend)
+    method = WorldMind({"top_k": 2, "verify": "every", "max_plan_actions": 2, "planner_max_tokens": 512,
+                        "n_shots": 1})
     ctx = EpisodeContext(
         models=models, model_ids=dict.fromkeys(models, backend.model_id), memory=memory, embedder=embedder,
-        run_id="smollm2-e2e", seed=0,
-        config=MethodConfig(top_k=2, verify="every", max_plan_actions=2, planner_max_tokens=512),
+        run_id="smollm2-e2e", seed=0, config=method.config, adapter=adapter,
     )
     env = ShortEpisode(adapter.make_env("twin", images=False), limit=3)
-    try:
-        record = asyncio.run(WorldMind().run_episode(task, env, ctx))
-    finally:
-        asyncio.run(backend.aclose())
+
+    async def episode() -> Any:
+        try:
+            outcome = await run_episode(method, task, env, ctx)
+            # the runner's commit: embed and add in order (the method never writes memory)
+            kept = [memory.add_embedded(e) for e in await memory.embed(outcome.experience)]
+            return outcome, kept
+        finally:
+            await backend.aclose()
+
+    outcome, kept = asyncio.run(episode())
+    record, stats = outcome.record, outcome.record.method_stats
 
     # every env step is recorded, with its action, feedback and progress
     env_steps = [s for s in record.trajectory if s.env_step]
@@ -82,17 +92,16 @@ def test_worldmind_episode_with_real_smollm2(tmp_path: Path):
     assert all(s.feedback.startswith("Last action") for s in env_steps)
     assert record.planner_calls >= 1 and record.tokens["planner"].completion > 0
     # the verifier ran on a real model answer
-    assert record.judge_calls >= 1
+    assert stats["judge_calls"] >= 1 and record.observation == "description"
     judged = [s for s in record.trajectory if s.judge_verdict is not None]
     assert judged and all(s.actual_state for s in judged)
     # a judged contradiction becomes Process Experience with full provenance
-    if record.judge_mismatches and record.reflections:
-        process = [e for e in record.experience if e["partition"] == "process"]
-        assert process
+    if stats["judge_mismatches"] and stats["reflections"]:
+        process = [e for e in outcome.experience if e.partition == "process"]
+        assert process and len(kept) == len(outcome.experience)
         for entry in process:
             for key in PROVENANCE:
-                assert entry.get(key) not in (None, ""), key
-            assert len(entry["key_embedding"]) == len(entry["text_embedding"]) == 384
+                assert getattr(entry, key) not in (None, ""), key
     # the repository reloads with plain datasets and has 384-dim embeddings
     memory.save(tmp_path / "memory")
     ds = datasets.load_from_disk(str(tmp_path / "memory"))
