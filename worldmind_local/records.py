@@ -45,6 +45,7 @@ class CallRecord(BaseModel):
     role: str
     request: str                                # models.base.request_key(model_id, request)
     model: str = ""
+    n: int = 1                                  # generations asked for in this one request (BoN, SimuRA)
     prompt_tokens: int = 0
     completion_tokens: int = 0
     latency_s: float = 0.0

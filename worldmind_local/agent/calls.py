@@ -27,6 +27,10 @@ ROLE_FALLBACK: dict[str, tuple[str, ...]] = {
     "distiller": ("distiller", "planner"),
     "summarizer": ("summarizer", "judge", "planner"),
     "refiner": ("refiner", "judge", "planner"),
+    # The baselines' modules run on the backbone (baselines.md): BoN's selector, SimuRA's encoder,
+    # policy memory, world model and critic, and the memory methods' judge, extractor and inductor.
+    **{role: (role, "planner") for role in ("selector", "encoder", "memory_update", "world_model", "critic",
+                                             "memory_judge", "extractor", "inductor")},
 }
 
 
@@ -112,7 +116,8 @@ class ModelCalls:
         model_id = getattr(backend, "model_id", "")
         self.record.calls.append(CallRecord(
             key=call_key or f"{request.role}:{len(self.record.calls)}", role=str(request.role),
-            request=request_key(model_id, request), model=model_id, prompt_tokens=result.prompt_tokens,
+            request=request_key(model_id, request), model=model_id, n=request.sampling.n,
+            prompt_tokens=result.prompt_tokens,
             completion_tokens=result.completion_tokens, latency_s=round(result.latency_s, 6),
         ))
         return result

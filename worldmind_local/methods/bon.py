@@ -41,7 +41,6 @@ from typing import Any, ClassVar
 
 from pydantic import Field
 
-from worldmind_local.agent.calls import backend_for
 from worldmind_local.agent.driver import Episode
 from worldmind_local.agent.plan import Plan, PlanParseError, extract_first_json_object, parse_plan
 from worldmind_local.agent.prompting import (
@@ -55,7 +54,7 @@ from worldmind_local.agent.prompting import (
 from worldmind_local.methods.base import BaseMethod, MethodConfig, Proposal
 from worldmind_local.methods.react import eb_examples, react_messages, react_schema
 
-__all__ = ["BestOfN", "BoNConfig", "Candidate", "selector_schema", "borrow_planner_backend"]
+__all__ = ["BestOfN", "BoNConfig", "Candidate", "selector_schema"]
 
 MAX_ANALYSIS_CHARS = 1200
 
@@ -93,17 +92,6 @@ def selector_schema(n_candidates: int) -> dict[str, Any]:
         "required": ["analysis", "best_index"],
         "additionalProperties": False,
     }
-
-
-def borrow_planner_backend(ep: Episode, roles: tuple[str, ...]) -> None:
-    """Give each role the run did not map a model to the planner's backend, for this episode only.
-
-    The runner maps WorldMind's roles; a baseline's own roles (selector, encoder, critic, ...) would
-    otherwise have no backend. Only this episode's `ModelCalls` sees the addition (a copy of the map)."""
-    missing = [r for r in roles if r not in ep.calls.models]
-    if missing:
-        planner = backend_for(ep.calls.models, "planner")
-        ep.calls.models = {**ep.calls.models, **{r: planner for r in missing}}
 
 
 def _screen(text: str, n_actions: int) -> tuple[Plan | None, str]:
@@ -186,7 +174,6 @@ class BestOfN(BaseMethod):
     config: BoNConfig
 
     async def start(self, ep: Episode) -> None:
-        borrow_planner_backend(ep, ("selector",))
         ep.state["examples"] = eb_examples(ep, self.config.n_shots)
 
     async def plan(self, ep: Episode) -> Proposal:

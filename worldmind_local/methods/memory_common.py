@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import BaseModel, Field
 
-from worldmind_local.agent.calls import ModelCalls, backend_for
+from worldmind_local.agent.calls import ModelCalls
 from worldmind_local.agent.plan import PlanParseError, extract_first_json_object
 from worldmind_local.agent.prompting import load_template, render
 from worldmind_local.methods.base import MethodConfig
@@ -114,17 +114,9 @@ class Verdict:
 # -- calls ------------------------------------------------------------------------------------------
 
 def backbone_calls(ep: Episode) -> ModelCalls:
-    """A ModelCalls on the same record whose construction roles are served by the backbone (the
-    planner's backend) unless the context gives them their own."""
-    calls = ep.state.get("_backbone_calls")
-    if calls is None:
-        models = dict(ep.ctx.models)
-        for role in BACKBONE_ROLES:
-            models.setdefault(role, backend_for(ep.ctx.models, "planner"))
-        calls = ModelCalls(models, ep.record, seed=ep.ctx.seed, task_index=ep.task.index,
-                           temperature=ep.config.temperature)
-        ep.state["_backbone_calls"] = calls
-    return calls
+    """The episode's calls: the memory-construction roles (memory_judge, extractor, inductor) are served
+    by the backbone (the planner's backend) through `calls.ROLE_FALLBACK` unless the run maps them."""
+    return ep.calls
 
 
 def context_length(backend: Any) -> int | None:

@@ -64,7 +64,6 @@ from worldmind_local.agent.prompting import (
     user_content,
 )
 from worldmind_local.methods.base import BaseMethod, MethodConfig, Proposal
-from worldmind_local.methods.bon import borrow_planner_backend
 from worldmind_local.methods.react import eb_examples
 
 __all__ = ["SimuRA", "SimuRAConfig", "Cluster", "cluster_samples", "critic_score"]
@@ -216,7 +215,6 @@ class SimuRA(BaseMethod):
     config: SimuRAConfig
 
     async def start(self, ep: Episode) -> None:
-        borrow_planner_backend(ep, MODULE_ROLES)
         ep.state.update(examples=eb_examples(ep, self.config.n_shots), memory=[],
                         stats=Counter(simulated_steps=0, single_cluster_steps=0, no_usable_sample_steps=0))
 
