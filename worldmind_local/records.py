@@ -128,6 +128,8 @@ class EpisodeRecord(BaseModel):
     # the run
     method: str
     run_id: str = ""
+    stream_id: str = ""                         # set by the runner
+    wave: list[int] | None = None               # [first episode index, size] when run in a wave (--wave)
     seed: int = 0
     model_ids: dict[str, str] = Field(default_factory=dict)
     config: dict[str, Any] = Field(default_factory=dict)

@@ -5,8 +5,8 @@ GoalDistiller, ExperienceRefiner) that methods compose."""
 from worldmind_local.agent.abstractor import AbstractState, StateAbstractor
 from worldmind_local.agent.calls import ModelCalls, derive_seed
 from worldmind_local.agent.distiller import GoalDistiller, annotate_trajectory
-from worldmind_local.agent.judge import Judge, Verdict, parse_verdict
 from worldmind_local.agent.driver import Episode, EpisodeOutcome, run_episode
+from worldmind_local.agent.judge import Judge, Verdict, parse_verdict
 from worldmind_local.agent.plan import (
     SKIP_STRING,
     Plan,

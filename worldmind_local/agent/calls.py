@@ -9,8 +9,10 @@ so a response cache or the replay backend reproduces a run exactly.
 
 from __future__ import annotations
 
+import asyncio
+import contextvars
 import hashlib
-from collections.abc import Mapping, Sequence
+from collections.abc import Awaitable, Mapping, Sequence
 from typing import Any
 
 from models.base import ChatBackend, ChatRequest, ChatResult, Role, Sampling, request_key
@@ -32,6 +34,12 @@ ROLE_FALLBACK: dict[str, tuple[str, ...]] = {
     **{role: (role, "planner") for role in ("selector", "encoder", "memory_update", "world_model", "critic",
                                              "memory_judge", "extractor", "inductor")},
 }
+
+
+# Where a call stands in the episode's call tree: calls made one after another get consecutive indices;
+# the branches of `ModelCalls.gather` get their own sub-scopes. Sorting by it lists concurrent calls in
+# branch order, whatever order they finished in.
+_SCOPE: contextvars.ContextVar[tuple[int, ...]] = contextvars.ContextVar("worldmind_call_scope", default=())
 
 
 def derive_seed(seed: int, task_index: int, call_key: str) -> int:
@@ -80,6 +88,30 @@ class ModelCalls:
         self.task_index = task_index
         self.temperature = temperature
         self.stats: Any = None  # the method's counters (e.g. WorldMindStats), for the role helpers
+        self._next: dict[tuple[int, ...], int] = {}
+        self._order: dict[int, tuple[int, ...]] = {}  # id(CallRecord) -> position in the call tree
+
+    def _position(self) -> tuple[int, ...]:
+        scope = _SCOPE.get()
+        index = self._next.get(scope, 0)
+        self._next[scope] = index + 1
+        return (*scope, index)
+
+    async def gather(self, *aws: Awaitable[Any]) -> list[Any]:
+        """`asyncio.gather` whose branches' calls are recorded in branch order (deterministic records,
+        however the concurrent requests finish)."""
+        base = self._position()
+
+        async def branch(j: int, aw: Awaitable[Any]) -> Any:
+            _SCOPE.set((*base, j))
+            return await aw
+
+        return list(await asyncio.gather(*(branch(j, aw) for j, aw in enumerate(aws))))
+
+    def sort_calls(self) -> None:
+        """Put the record's calls in call-tree order (the driver does this at the end of the episode)."""
+        position = {id(c): self._order.get(id(c), ()) for c in self.record.calls}
+        self.record.calls.sort(key=lambda c: position[id(c)])
 
     def backend(self, role: str) -> ChatBackend:
         return backend_for(self.models, role)
@@ -106,18 +138,21 @@ class ModelCalls:
         return ChatRequest(messages=list(messages), sampling=sampling, json_schema=json_schema, role=role)
 
     async def ask(self, request: ChatRequest, *, call_key: str = "") -> ChatResult:
-        """One request; tokens, latency and a CallRecord (with the request's cache key) are booked."""
+        """One request; tokens, latency and a CallRecord (with the request's cache key) are booked.
+
+        The CallRecord is placed when the request is sent, not when it returns, so concurrent calls
+        (a plan's verifications, SimuRA's clusters) are listed in a deterministic order."""
         backend = self.backend(request.role)
+        model_id = getattr(backend, "model_id", "")
+        call = CallRecord(key=call_key or f"{request.role}:{len(self.record.calls)}", role=str(request.role),
+                          request=request_key(model_id, request), model=model_id, n=request.sampling.n)
+        self.record.calls.append(call)
+        self._order[id(call)] = self._position()
         results = await backend.complete([request])
         if len(results) != 1:
             raise RuntimeError(f"{request.role} backend returned {len(results)} results for 1 request")
         result = results[0]
         self.record.add_tokens(request.role, result.prompt_tokens, result.completion_tokens, result.latency_s)
-        model_id = getattr(backend, "model_id", "")
-        self.record.calls.append(CallRecord(
-            key=call_key or f"{request.role}:{len(self.record.calls)}", role=str(request.role),
-            request=request_key(model_id, request), model=model_id, n=request.sampling.n,
-            prompt_tokens=result.prompt_tokens,
-            completion_tokens=result.completion_tokens, latency_s=round(result.latency_s, 6),
-        ))
+        call.prompt_tokens, call.completion_tokens = result.prompt_tokens, result.completion_tokens
+        call.latency_s = round(result.latency_s, 6)
         return result

@@ -163,6 +163,7 @@ async def run_episode(method: Method, task: Task, env: Env, ctx: EpisodeContext)
         rec.error = str(exc)
         if not rec.success:  # a success stays a success even if its distillation did not fit
             rec.end_reason = "context_length"
+    ep.calls.sort_calls()
     rec.taxonomy = taxonomy_label(rec.success, rec.end_reason)
     rec.wall_seconds = round(time.perf_counter() - t0, 6)
     return EpisodeOutcome(rec, ep.experience)

@@ -46,7 +46,6 @@ borrow the planner's backend when the run maps none), as the reference runs one 
 
 from __future__ import annotations
 
-import asyncio
 from collections import Counter
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -319,7 +318,7 @@ class SimuRA(BaseMethod):
             chosen = clusters[0]
         else:
             stats["simulated_steps"] += 1
-            extra["simura"]["simulations"] = list(await asyncio.gather(
+            extra["simura"]["simulations"] = list(await ep.calls.gather(
                 *(self._simulate(ep, index, state, c) for c in clusters)))
             chosen = best_cluster(clusters)
         intent = intent_text(chosen)

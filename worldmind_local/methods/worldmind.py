@@ -25,7 +25,6 @@ reflected on: what the validator filters is exactly what this row measures).
 
 from __future__ import annotations
 
-import asyncio
 import time
 from typing import Any, ClassVar, Literal
 
@@ -197,7 +196,7 @@ class WorldMind(BaseMethod):
             return
         # The checks of one plan run concurrently (the plan cannot change in between), so a batching
         # backend sees them together; their experience is kept in step order.
-        produced = await asyncio.gather(*(self._verify(ep, c) for c in checks))
+        produced = await ep.calls.gather(*(self._verify(ep, c) for c in checks))
         entries = [e for batch in produced for e in batch]
         ep.experience.extend(entries)
         if entries and self.config.process_retrieval == "call" and ep.ctx.memory is not None:
