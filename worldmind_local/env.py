@@ -27,6 +27,7 @@ __all__ = [
     "UnknownActionError",
     "ExampleAction",
     "WorkedExample",
+    "lookup_action",
 ]
 
 
@@ -44,6 +45,17 @@ class UnknownActionError(KeyError):
 
     def __str__(self) -> str:  # KeyError quotes its message; we want it readable
         return str(self.args[0]) if self.args else "unknown action"
+
+
+def lookup_action(ids: dict[str, int], name: str, *, benchmark: str, task: Task | None) -> int:
+    """The id of an action name in an episode's action space, or UnknownActionError naming the action,
+    the benchmark and the task. Every env (the three twins and the three EmbodiedBench wrappers) answers
+    `Env.action_id` through this one function."""
+    try:
+        return ids[name]
+    except KeyError:
+        where = task.id if task is not None else "(none: reset first)"
+        raise UnknownActionError(f"action {name!r} is not in the {benchmark} action space of task {where}") from None
 
 
 @dataclass(frozen=True, slots=True)

@@ -15,7 +15,7 @@ from collections.abc import Callable, Mapping
 from functools import partial
 from typing import Any
 
-from worldmind_local.env import Observation, StepResult, Task, UnknownActionError
+from worldmind_local.env import Observation, StepResult, Task, UnknownActionError, lookup_action
 
 __all__ = ["EmbodiedBenchAlfredEnv", "INSTALL_HINT", "metadata_text"]
 
@@ -142,10 +142,7 @@ class EmbodiedBenchAlfredEnv:
         )
 
     def action_id(self, name: str) -> int:
-        if name not in self._index:
-            task = self._task.id if self._task else "(none: reset first)"
-            raise UnknownActionError(f"action {name!r} is not in the action space of task {task}")
-        return self._index[name]
+        return lookup_action(self._index, name, benchmark=self.benchmark, task=self._task)
 
     def close(self) -> None:
         if self._env is not None and hasattr(self._env, "close"):

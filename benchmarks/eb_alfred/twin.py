@@ -18,7 +18,7 @@ from benchmarks.eb_alfred.scene import Scene, cached_scene
 from benchmarks.eb_alfred.skills import Skills
 from benchmarks.eb_alfred.state_text import render_state, render_text
 from benchmarks.eb_alfred.world import World
-from worldmind_local.env import Observation, StepResult, Task, UnknownActionError
+from worldmind_local.env import Observation, StepResult, Task, UnknownActionError, lookup_action
 
 __all__ = ["AlfredTwin", "scene_of"]
 
@@ -120,9 +120,7 @@ class AlfredTwin:
 
     def action_id(self, name: str) -> int:
         index = self._scene.action_index if self._scene else {}
-        if name not in index:
-            raise UnknownActionError(f"action {name!r} is not in the action space of task {self._task_id()}")
-        return index[name]
+        return lookup_action(index, name, benchmark=self.benchmark, task=self._task)
 
     def _task_id(self) -> str:
         return self._task.id if self._task else "(none: reset first)"

@@ -12,11 +12,11 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from worldmind_local.env import Task, TaskDataError, UnknownActionError
+from worldmind_local.env import TaskDataError
 
 from .scene import CAB_MARKERS, CATEGORIES, FRIDGE_MARKER, RECEPTACLE_TEXT, RECEPTACLES, STATIC_ENTITIES
 
-__all__ = ["Skill", "embedded_skills", "load_skills", "skills_for", "lookup_action", "ACTION_SPACE_FILE"]
+__all__ = ["Skill", "embedded_skills", "load_skills", "skills_for", "ACTION_SPACE_FILE"]
 
 ACTION_SPACE_FILE = "action_space.json"
 _PDDL_ACTIONS = ("nav", "place", "open_fridge", "close_fridge", "open_cab", "close_cab")
@@ -97,10 +97,3 @@ def skills_for(data_dir: Path | None) -> tuple[Skill, ...]:
     return embedded_skills()
 
 
-def lookup_action(ids: dict[str, int], name: str, task: Task | None) -> int:
-    """The id of a skill text, or UnknownActionError naming the action and the task (twin and wrapper alike)."""
-    try:
-        return ids[name]
-    except KeyError:
-        where = f" (task {task.id})" if task is not None else ""
-        raise UnknownActionError(f"unknown EB-Habitat action {name!r}{where}") from None

@@ -18,9 +18,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from worldmind_local.env import Observation, StepResult, Task, UnknownActionError
+from worldmind_local.env import Observation, StepResult, Task, UnknownActionError, lookup_action
 
-from .actions import embedded_skills, lookup_action
+from .actions import embedded_skills
 from .twin import MAX_INVALID, MAX_STEPS
 
 __all__ = ["EmbodiedBenchHabitatEnv", "INSTALL_HINT", "default_state_text"]
@@ -153,7 +153,7 @@ class EmbodiedBenchHabitatEnv:
         return Observation(default_state_text(info, holding), image=image, state={"holding": holding})
 
     def action_id(self, name: str) -> int:
-        return lookup_action(self._ids, name, self._task)
+        return lookup_action(self._ids, name, benchmark=self.benchmark, task=self._task)
 
     def close(self) -> None:
         if self._env is not None:

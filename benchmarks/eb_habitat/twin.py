@@ -27,10 +27,10 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from worldmind_local.env import Observation, StepResult, Task, UnknownActionError
+from worldmind_local.env import Observation, StepResult, Task, UnknownActionError, lookup_action
 
 from .abstract import render_state, render_text
-from .actions import Skill, lookup_action, skills_for
+from .actions import Skill, skills_for
 from .predicates import compile_node, ground_expr, ground_pred
 from .scene import FRIDGE_MARKER, MARKER_RECEPTACLE, STATIC_ENTITIES, episode_reach
 from .world import HOME_IDX, NOWHERE, STATIC_INDEX, Entities, World, reach_index
@@ -244,7 +244,7 @@ class HabitatTwin:
         return self._skills
 
     def action_id(self, name: str) -> int:
-        return lookup_action(self._ids, name, self._task)
+        return lookup_action(self._ids, name, benchmark=self.benchmark, task=self._task)
 
     def close(self) -> None:
         self._done = True

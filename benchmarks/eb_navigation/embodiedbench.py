@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 from benchmarks.eb_navigation.actions import ACTION_TEXTS
 from benchmarks.eb_navigation.observe import ObjectTuple, Pose, describe, visible_objects
 from benchmarks.eb_navigation.twin import MAX_STEPS, NavObservation
-from worldmind_local.env import Observation, StepResult, Task, UnknownActionError
+from worldmind_local.env import Observation, StepResult, Task, lookup_action
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -163,12 +163,8 @@ class EmbodiedBenchNavigation:
         return NavObservation(partial(_text, pose, objects), state=state, image_fn=partial(_to_pil, frame))
 
     def action_id(self, name: str) -> int:
-        if name in self.actions:
-            return self.actions.index(name)
-        task = self._task.id if self._task is not None else "(no task)"
-        raise UnknownActionError(
-            f"{name!r} is not an EB-Navigation action (task {task}); actions: {', '.join(self.actions)}"
-        )
+        ids = {action: i for i, action in enumerate(self.actions)}
+        return lookup_action(ids, name, benchmark=self.benchmark, task=self._task)
 
     def close(self) -> None:
         if self._inner is not None:

@@ -42,7 +42,7 @@ from benchmarks.eb_navigation.geometry import (
 )
 from benchmarks.eb_navigation.observe import ObjectTuple, Pose, describe, visible_objects
 from benchmarks.eb_navigation.render import IMAGE_SIZE, render_top_down
-from worldmind_local.env import Observation, StepResult, Task, UnknownActionError
+from worldmind_local.env import Observation, StepResult, Task, lookup_action
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -224,13 +224,7 @@ class NavigationTwin:
         return _image(self._scene, self._pose(), self._objects, self._image_size)
 
     def action_id(self, name: str) -> int:
-        try:
-            return self._ids[name]
-        except KeyError:
-            task = self._task.id if self._task is not None else "(no task)"
-            raise UnknownActionError(
-                f"{name!r} is not an EB-Navigation action (task {task}); actions: {', '.join(self.actions)}"
-            ) from None
+        return lookup_action(self._ids, name, benchmark=self.benchmark, task=self._task)
 
     def close(self) -> None:
         self._task = None

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from worldmind_local.reporting import episodes as ep
+import worldmind_local.reporting.episodes as ep
 from worldmind_local.reporting.load import Stream
 from worldmind_local.reporting.model import caption_facts, is_clean, short_model, short_subset
 from worldmind_local.reporting.tables import _budget_pool, _top_k, group_by, subset_columns

@@ -12,7 +12,7 @@ from collections import defaultdict
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from worldmind_local.reporting import episodes as ep
+import worldmind_local.reporting.episodes as ep
 from worldmind_local.reporting.load import Stream
 from worldmind_local.reporting.model import (
     Num,

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from worldmind_local.reporting import episodes as ep
+import worldmind_local.reporting.episodes as ep
 from worldmind_local.reporting.load import Stream
 from worldmind_local.reporting.model import Num, Table, caption_facts, is_clean, seed_summary, short_model
 from worldmind_local.reporting.stats import mean_sd, paired_comparison

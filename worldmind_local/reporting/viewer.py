@@ -25,7 +25,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from worldmind_local.reporting import episodes as ep
+import worldmind_local.reporting.episodes as ep
 from worldmind_local.reporting.load import Run, Stream
 from worldmind_local.reporting.model import Table, short_model
 from worldmind_local.reporting.render import to_html

@@ -159,3 +159,51 @@ def test_every_method_with_real_smollm2_on_one_short_navigation_episode(tmp_path
         assert rec.method == name and rec.error is None, (name, rec.error)
         assert rec.steps == 1 and rec.tokens["planner"].completion > 0, name
         assert all(s.feedback.startswith("Last action") for s in rec.trajectory if s.env_step), name
+
+
+class _ReadOnly:
+    """A memory view that fails the test on any write: only the runner may write a stream's memory."""
+
+    WRITES = ("add", "add_embedded", "commit", "save")
+
+    def __init__(self, inner: Any) -> None:
+        self._inner = inner
+
+    def __getattr__(self, name: str) -> Any:
+        if name in self.WRITES:
+            raise AssertionError(f"a method wrote its memory ({name})")
+        return getattr(self._inner, name)
+
+    def __len__(self) -> int:
+        return len(self._inner)
+
+
+def test_no_method_writes_its_memory(embedder) -> None:
+    from models.specs import make_backend
+    from worldmind_local.agent.driver import run_episode
+    from worldmind_local.methods.base import EpisodeContext
+    from worldmind_local.registry import BENCHMARKS, METHODS
+
+    adapter = BENCHMARKS.get("eb_alfred")
+    tasks = adapter.generate_tasks(0, "base", 2)
+    backend = make_backend(RANDOM)
+
+    async def two_episodes(name: str) -> None:
+        method = METHODS.get(name)(_options(name))
+        memory = method.new_memory(embedder, None)
+        for i, task in enumerate(tasks):
+            view = _ReadOnly(memory) if memory is not None else None
+            ctx = EpisodeContext(models={"planner": backend, "judge": backend},
+                                 model_ids={"planner": backend.model_id}, memory=view, embedder=embedder,
+                                 run_id="ro", seed=0, config=method.config, adapter=adapter)
+            outcome = await run_episode(method, task, adapter.make_env("twin"), ctx)
+            if memory is not None:  # the runner's commit
+                for entry in await memory.embed(outcome.experience):
+                    memory.add_embedded(entry)
+                memory.commit(i)
+
+    async def all_methods() -> None:
+        for name in METHODS.names():
+            await two_episodes(name)
+
+    asyncio.run(all_methods())
