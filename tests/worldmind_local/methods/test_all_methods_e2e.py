@@ -1,6 +1,6 @@
 """Every method of the comparison, end to end: on the three benchmarks through the runner (model-free
-backend), resumed after a SIGKILL exactly like an uninterrupted run, and one short EB-Navigation episode
-each with the real SmolLM2 (concurrently, on one hf backend)."""
+backend), resumed after a SIGKILL exactly like an uninterrupted run, and one short EB-Navigation and
+EB-ALFRED episode each with the real SmolLM2 (concurrently, on one hf backend)."""
 
 from __future__ import annotations
 
@@ -112,7 +112,8 @@ def test_every_method_resumes_after_sigkill_exactly(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_every_method_with_real_smollm2_on_one_short_navigation_episode(tmp_path: Path, embedder) -> None:
+@pytest.mark.parametrize("benchmark", ["eb_navigation", "eb_alfred"])  # EB-Habitat: measured by hand (README)
+def test_every_method_with_real_smollm2_on_one_short_episode(tmp_path: Path, embedder, benchmark: str) -> None:
     from models.specs import make_backend
     from worldmind_local.agent.driver import run_episode
     from worldmind_local.methods.base import EpisodeContext
@@ -121,7 +122,7 @@ def test_every_method_with_real_smollm2_on_one_short_navigation_episode(tmp_path
     sys.path.insert(0, str(Path(__file__).parent))
     from test_worldmind_smollm2 import ShortEpisode  # type: ignore[import-not-found]
 
-    adapter = BENCHMARKS.get("eb_navigation")
+    adapter = BENCHMARKS.get(benchmark)
     task = adapter.generate_tasks(0, "base", 1)[0]
     backend = make_backend("hf:smollm2-135m-instruct")
 
@@ -144,7 +145,7 @@ def test_every_method_with_real_smollm2_on_one_short_navigation_episode(tmp_path
         ctx = EpisodeContext(models={"planner": backend, "judge": backend}, model_ids={"planner": backend.model_id},
                              memory=memory, embedder=embedder, run_id="smollm2-all", seed=0,
                              config=method.config, adapter=adapter)
-        env = ShortEpisode(adapter.make_env("twin", images=False), limit=1)
+        env = ShortEpisode(adapter.make_env("twin"), limit=1)
         outcome = await run_episode(method, task, env, ctx)
         return name, outcome
 
@@ -157,7 +158,8 @@ def test_every_method_with_real_smollm2_on_one_short_navigation_episode(tmp_path
     for name, outcome in asyncio.run(all_methods()):
         rec = outcome.record
         assert rec.method == name and rec.error is None, (name, rec.error)
-        assert rec.steps == 1 and rec.tokens["planner"].completion > 0, name
+        assert rec.planner_calls >= 1 and rec.tokens["planner"].completion > 0, name
+        assert rec.steps == 1 or rec.planner_output_errors > 0, name  # a cut-off answer is EB's invalid output
         assert all(s.feedback.startswith("Last action") for s in rec.trajectory if s.env_step), name
 
 
