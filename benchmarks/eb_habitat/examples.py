@@ -42,6 +42,7 @@ from benchmarks.eb_habitat import ADAPTER
 from benchmarks.eb_habitat.data import SUBSETS, load_episodes
 from worldmind_local.agent.plan import SKIP_STRING
 from worldmind_local.env import Env, ExampleAction, Task, UnknownActionError, WorkedExample
+from worldmind_local.examples import norm, pick, pool_root
 
 __all__ = ["worked_examples", "POOL_SEED", "MAX_ACTIONS"]
 
@@ -69,14 +70,7 @@ def worked_examples(
     """`min(n, pool size)` worked examples, the same for the same arguments (cached)."""
     if n <= 0:
         return []
-    root = (
-        str(Path(data_dir).resolve()) if data_dir is not None and ADAPTER.has_data(Path(data_dir)) else None
-    )
-    return list(_select(root, n, frozenset(_norm(x) for x in exclude)))
-
-
-def _norm(text: str) -> str:
-    return " ".join(str(text).casefold().split()).rstrip(".").strip()
+    return list(_select(pool_root(ADAPTER, data_dir), n, frozenset(norm(x) for x in exclude)))
 
 
 @lru_cache(maxsize=128)
@@ -88,20 +82,7 @@ def _select(root: str | None, n: int, excluded: frozenset[str]) -> tuple[WorkedE
         pool = chain.from_iterable(_data_pool(root, s) for s in SUBSETS)
         index = _episode_index(root)
         banned = frozenset(ep for key in excluded for ep in index.get(key, ()))
-    out: list[WorkedExample] = []
-    seen: set[str] = set()
-    for cand in pool:
-        ex = cand.example
-        instruction = _norm(ex.instruction)
-        if cand.episode in seen or instruction in seen:
-            continue
-        seen |= {cand.episode, instruction}
-        if cand.episode in banned or _norm(ex.task_id) in excluded or instruction in excluded:
-            continue
-        out.append(ex)
-        if len(out) == n:
-            break
-    return tuple(out)
+    return pick(pool, n, excluded, banned)
 
 
 # -- pools -------------------------------------------------------------------------------------------
@@ -129,7 +110,7 @@ def _episode_index(root: str) -> dict[str, frozenset[str]]:
     for subset in SUBSETS:
         for episode in load_episodes(Path(root), subset):
             for key in (f"eb_habitat/{subset}/{episode['index']}", episode["instruction"]):
-                index.setdefault(_norm(key), set()).add(_arrangement(episode))
+                index.setdefault(norm(key), set()).add(_arrangement(episode))
     return {key: frozenset(eps) for key, eps in index.items()}
 
 

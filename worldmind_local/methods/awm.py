@@ -36,18 +36,17 @@ from worldmind_local.agent.calls import derive_seed
 from worldmind_local.agent.driver import Episode
 from worldmind_local.agent.prompting import TemplateError, load_template, render
 from worldmind_local.memory.store import normalize_instruction
-from worldmind_local.methods.base import BaseMethod, MethodConfig, Proposal
+from worldmind_local.methods.base import MethodConfig, Proposal
 from worldmind_local.methods.memory_common import (
     CHARS_PER_TOKEN,
     MemoryConfig,
     MemoryStats,
+    StoreMethod,
     SuccessSignal,
     backbone_calls,
     context_length,
     decide_success,
     finish_stats,
-    load_store,
-    make_store,
     new_entry,
     note_retrieved,
     remember_answer,
@@ -78,19 +77,14 @@ class AWMStats(MemoryStats):
     induction_empty: int = 0
 
 
-class AgentWorkflowMemory(BaseMethod):
+class AgentWorkflowMemory(StoreMethod):
     name: ClassVar[str] = "awm"
     description: ClassVar[str] = ("AWM (online): one workflow text re-induced from all judged successes, "
                                   "injected whole into ReAct's prompt")
-    memory_scope: ClassVar[Any] = "global"
     config_class: ClassVar[type[MethodConfig]] = AWMConfig
     config: AWMConfig
 
-    def new_memory(self, embedder: Any, budget: int | None) -> Any | None:
-        return make_store(embedder, budget, self.config)
 
-    def load_memory(self, path: str, embedder: Any, budget: int | None) -> Any | None:
-        return load_store(path, embedder, budget, self.config)
 
     async def start(self, ep: Episode) -> None:
         stats = AWMStats(success_signal=self.config.success_signal)

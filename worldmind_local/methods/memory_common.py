@@ -21,14 +21,14 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 from pydantic import BaseModel, Field
 
 from worldmind_local.agent.calls import ModelCalls
 from worldmind_local.agent.plan import PlanParseError, extract_first_json_object
 from worldmind_local.agent.prompting import load_template, render
-from worldmind_local.methods.base import MethodConfig
+from worldmind_local.methods.base import BaseMethod, MethodConfig
 from worldmind_local.records import StepRecord
 
 if TYPE_CHECKING:
@@ -277,6 +277,19 @@ def note_retrieved(ep: Episode, entries: Sequence[Any], stats: MemoryStats) -> l
             ep.record.retrieved_ids.append(entry_id)
     stats.retrieved = len(ep.record.retrieved_ids)
     return ids
+
+
+class StoreMethod(BaseMethod):
+    """A baseline whose global memory is an `ExperienceStore` (NaiveMem, Synapse, AWM, ReasoningBank)."""
+
+    memory_scope: ClassVar[Any] = "global"
+    config: MemoryConfig
+
+    def new_memory(self, embedder: Any, budget: int | None) -> Any | None:
+        return make_store(embedder, budget, self.config)
+
+    def load_memory(self, path: str, embedder: Any, budget: int | None) -> Any | None:
+        return load_store(path, embedder, budget, self.config)
 
 
 def make_store(embedder: Any, budget: int | None, config: MemoryConfig, *, dedup: str = "none") -> ExperienceStore:

@@ -33,10 +33,11 @@ from worldmind_local.agent.distiller import annotate_trajectory
 from worldmind_local.agent.driver import Episode
 from worldmind_local.agent.plan import PlanParseError, parse_plan, planner_schema
 from worldmind_local.agent.prompting import format_examples, load_template, planner_messages, render
-from worldmind_local.methods.base import BaseMethod, MethodConfig, Proposal
+from worldmind_local.methods.base import MethodConfig, Proposal
 from worldmind_local.methods.memory_common import (
     MemoryConfig,
     MemoryStats,
+    StoreMethod,
     SuccessSignal,
     decide_success,
     embed_query,
@@ -78,11 +79,10 @@ def format_trajectories(entries: list[Any]) -> str:
     return render(load_template("common", "naivemem_block"), trajectories="\n\n".join(blocks))
 
 
-class NaiveMem(BaseMethod):
+class NaiveMem(StoreMethod):
     name: ClassVar[str] = "naivemem"
     description: ClassVar[str] = ("NaiveMem: raw successful trajectories, top-2 by instruction, in WorldMind's "
                                   "prompt; no distillation, no verification")
-    memory_scope: ClassVar[Any] = "global"
     config_class: ClassVar[type[MethodConfig]] = NaiveMemConfig
     config: NaiveMemConfig
 

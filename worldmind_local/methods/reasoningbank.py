@@ -31,17 +31,16 @@ from pydantic import Field
 from worldmind_local.agent.driver import Episode
 from worldmind_local.agent.plan import PlanParseError, extract_first_json_object
 from worldmind_local.agent.prompting import load_template, render
-from worldmind_local.methods.base import BaseMethod, MethodConfig, Proposal
+from worldmind_local.methods.base import MethodConfig, Proposal
 from worldmind_local.methods.memory_common import (
     MemoryConfig,
     MemoryStats,
+    StoreMethod,
     SuccessSignal,
     backbone_calls,
     decide_success,
     embed_query,
     finish_stats,
-    load_store,
-    make_store,
     new_entry,
     note_retrieved,
     remember_answer,
@@ -124,19 +123,14 @@ def format_items(entries: list[Any]) -> str:
     return render(load_template("common", "reasoningbank_block"), items="\n\n".join(blocks))
 
 
-class ReasoningBank(BaseMethod):
+class ReasoningBank(StoreMethod):
     name: ClassVar[str] = "reasoningbank"
     description: ClassVar[str] = ("ReasoningBank: <=3 reasoning items per episode from judged successes and "
                                   "failures; the top-1 past task's items in ReAct's prompt")
-    memory_scope: ClassVar[Any] = "global"
     config_class: ClassVar[type[MethodConfig]] = ReasoningBankConfig
     config: ReasoningBankConfig
 
-    def new_memory(self, embedder: Any, budget: int | None) -> Any | None:
-        return make_store(embedder, budget, self.config)
 
-    def load_memory(self, path: str, embedder: Any, budget: int | None) -> Any | None:
-        return load_store(path, embedder, budget, self.config)
 
     async def start(self, ep: Episode) -> None:
         stats = ReasoningBankStats(success_signal=self.config.success_signal)

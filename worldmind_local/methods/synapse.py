@@ -29,19 +29,18 @@ from pydantic import Field
 
 from worldmind_local.agent.driver import Episode
 from worldmind_local.agent.prompting import load_template, render
-from worldmind_local.methods.base import BaseMethod, MethodConfig, Proposal
+from worldmind_local.methods.base import MethodConfig, Proposal
 from worldmind_local.methods.memory_common import (
     CHARS_PER_TOKEN,
     MemoryConfig,
     MemoryStats,
+    StoreMethod,
     SuccessSignal,
     answer_field,
     context_length,
     decide_success,
     embed_query,
     finish_stats,
-    load_store,
-    make_store,
     new_entry,
     note_retrieved,
     planning_calls,
@@ -103,19 +102,14 @@ def render_exemplar(ep: Episode) -> str:
     return "\n".join(turns)
 
 
-class Synapse(BaseMethod):
+class Synapse(StoreMethod):
     name: ClassVar[str] = "synapse"
     description: ClassVar[str] = ("Synapse: successful trajectories as exemplars, top-3 by task specifier, in "
                                   "ReAct's examples slot")
-    memory_scope: ClassVar[Any] = "global"
     config_class: ClassVar[type[MethodConfig]] = SynapseConfig
     config: SynapseConfig
 
-    def new_memory(self, embedder: Any, budget: int | None) -> Any | None:
-        return make_store(embedder, budget, self.config)
 
-    def load_memory(self, path: str, embedder: Any, budget: int | None) -> Any | None:
-        return load_store(path, embedder, budget, self.config)
 
     async def start(self, ep: Episode) -> None:
         stats = SynapseStats(success_signal=self.config.success_signal)

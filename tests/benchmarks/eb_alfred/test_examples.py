@@ -13,6 +13,7 @@ from benchmarks.eb_alfred.data import load_pack
 from benchmarks.eb_alfred.examples import POOL_SEED, POOL_SIZE, worked_examples
 from worldmind_local.agent.plan import SKIP_STRING
 from worldmind_local.env import BenchmarkAdapter, Task, WorkedExample
+from worldmind_local.examples import norm
 
 
 def _clear_caches() -> None:
@@ -90,8 +91,8 @@ def test_excluded_id_or_instruction_never_returned(data_dir: Path | None) -> Non
     shouted = f"  {base[1].instruction.strip().rstrip('.').upper()}. "
     by_text = worked_examples(10, data_dir=data_dir, exclude=[shouted])
     assert len(by_text) == 10 and base[1].task_id not in {ex.task_id for ex in by_text}
-    norm = module._norm(base[1].instruction)
-    assert all(module._norm(ex.instruction) != norm for ex in by_text)
+    target = norm(base[1].instruction)
+    assert all(norm(ex.instruction) != target for ex in by_text)
 
 
 def test_pool_size_caps_n_and_zero_gives_none() -> None:

@@ -13,6 +13,7 @@ from benchmarks.eb_habitat.data import load_episodes
 from benchmarks.eb_habitat.examples import POOL_SEED, POOL_SIZE, worked_examples
 from worldmind_local.agent.plan import SKIP_STRING
 from worldmind_local.env import BenchmarkAdapter, Task, WorkedExample
+from worldmind_local.examples import norm
 
 
 def _clear_caches() -> None:
@@ -90,8 +91,8 @@ def test_excluded_id_or_instruction_never_returned(data_dir: Path | None) -> Non
     shouted = f"  {base[1].instruction.strip().rstrip('.').upper()}. "
     by_text = worked_examples(10, data_dir=data_dir, exclude=[shouted])
     assert len(by_text) == 10 and base[1].task_id not in {ex.task_id for ex in by_text}
-    norm = module._norm(base[1].instruction)
-    assert all(module._norm(ex.instruction) != norm for ex in by_text)
+    target = norm(base[1].instruction)
+    assert all(norm(ex.instruction) != target for ex in by_text)
 
 
 def test_pool_size_caps_n_and_zero_gives_none() -> None:
@@ -116,7 +117,7 @@ def test_data_pack_examples_come_from_base_and_predict(eb_data_dir: Path) -> Non
     kinds = {t.id: t.task_type for t in ADAPTER.load_tasks(eb_data_dir, "base")}
     assert len({kinds[ex.task_id] for ex in examples}) >= 4
     assert all(a.predicted_state != SKIP_STRING for ex in examples for a in ex.actions)
-    assert len({module._norm(ex.instruction) for ex in examples}) == 10
+    assert len({norm(ex.instruction) for ex in examples}) == 10
 
 
 def test_same_arrangement_in_another_subset_is_excluded(eb_data_dir: Path) -> None:

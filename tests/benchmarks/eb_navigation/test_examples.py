@@ -12,6 +12,7 @@ from benchmarks.eb_navigation import examples as module
 from benchmarks.eb_navigation.examples import POOL_SEED, POOL_SIZE, worked_examples
 from worldmind_local.agent.plan import SKIP_STRING
 from worldmind_local.env import BenchmarkAdapter, Task, WorkedExample
+from worldmind_local.examples import norm
 
 
 def _clear_caches() -> None:
@@ -89,8 +90,8 @@ def test_excluded_id_or_instruction_never_returned(data_dir: Path | None) -> Non
     shouted = f"  {base[1].instruction.strip().rstrip('.').upper()}. "
     by_text = worked_examples(3, data_dir=data_dir, exclude=[shouted])
     assert len(by_text) == 3 and base[1].task_id not in {ex.task_id for ex in by_text}
-    norm = module._norm(base[1].instruction)
-    assert all(module._norm(ex.instruction) != norm for ex in by_text)
+    target = norm(base[1].instruction)
+    assert all(norm(ex.instruction) != target for ex in by_text)
 
 
 def test_pool_size_caps_n_and_zero_gives_none() -> None:
@@ -115,7 +116,7 @@ def test_data_pack_examples_come_from_base_and_predict(eb_data_dir: Path) -> Non
     assert all(a.predicted_state != SKIP_STRING for ex in examples for a in ex.actions)
     assert all(len(ex.actions) <= module.SHORT for ex in examples)
     assert len({a.action_id for a in examples[0].actions}) > 1
-    assert len({module._norm(ex.instruction) for ex in examples}) == 3
+    assert len({norm(ex.instruction) for ex in examples}) == 3
 
 
 def test_same_episode_in_another_subset_is_excluded(eb_data_dir: Path) -> None:
