@@ -55,8 +55,8 @@ def test_worldmind_episode_with_real_smollm2(tmp_path: Path):
     import datasets
 
     from models.specs import make_backend
-    from worldmind_local.memory import Embedder, WorldKnowledgeRepository
     from worldmind_local.agent.driver import run_episode
+    from worldmind_local.memory import Embedder, WorldKnowledgeRepository
     from worldmind_local.methods.base import EpisodeContext
     from worldmind_local.methods.worldmind import WorldMind
 
