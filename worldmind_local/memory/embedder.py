@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Embedder", "default_embedder", "DEFAULT_MODEL_ID", "DEFAULT_DIM"]
+__all__ = ["Embedder", "default_embedder", "matching_default_embedder", "DEFAULT_MODEL_ID", "DEFAULT_DIM"]
 
 DEFAULT_MODEL_ID = "sentence-transformers/all-MiniLM-L6-v2"
 DEFAULT_DIM = 384
@@ -244,3 +244,13 @@ def _check_texts(texts: Sequence[str]) -> list[str]:
 def default_embedder() -> Embedder:
     """The process-wide all-MiniLM-L6-v2 embedder (one model, one cache, batching across all users)."""
     return Embedder()
+
+
+def matching_default_embedder(model_id: str, dim: int, what: str) -> Embedder:
+    """The default embedder for a memory that was given none, refused when the memory's vectors came
+    from another model or have another dimension (`what` names the memory in the message)."""
+    emb = default_embedder()
+    if (emb.model_id, emb.dim) != (model_id, dim):
+        raise ValueError(f"this {what} holds {model_id} embeddings ({dim} dims); pass a matching embedder "
+                         f"(the default is {emb.model_id}, {emb.dim} dims)")
+    return emb

@@ -29,7 +29,13 @@ from typing import Any
 
 import numpy as np
 
-from worldmind_local.memory.embedder import DEFAULT_DIM, DEFAULT_MODEL_ID, Embedder, default_embedder
+from worldmind_local.memory.budget import BUDGET_UNITS, budget_prefix, over_budget
+from worldmind_local.memory.embedder import (
+    DEFAULT_DIM,
+    DEFAULT_MODEL_ID,
+    Embedder,
+    matching_default_embedder,
+)
 from worldmind_local.memory.entries import PARTITIONS, ExperienceEntry, MemoryDataError
 from worldmind_local.memory.index import PartitionIndex
 from worldmind_local.memory.storage import (
@@ -56,7 +62,7 @@ class WorldKnowledgeRepository:
                  dedup_threshold: float = 0.95, budget_unit: str = "episodes") -> None:
         if budget is not None and budget < 0:
             raise ValueError(f"memory budget must be >= 0 or None, got {budget}")
-        if budget_unit not in ("episodes", "entries"):
+        if budget_unit not in BUDGET_UNITS:
             raise ValueError(f"budget_unit must be 'episodes' or 'entries', got {budget_unit!r}")
         self.budget_unit = budget_unit
         self._sources: set[tuple[str, ...]] = set()
@@ -79,13 +85,7 @@ class WorldKnowledgeRepository:
     def embedder(self) -> Embedder:
         """The embedder in use; without one given, the shared default all-MiniLM-L6-v2 (loaded lazily)."""
         if self._embedder is None:
-            emb = default_embedder()
-            if (emb.model_id, emb.dim) != (self.embedder_model_id, self.dim):
-                raise ValueError(
-                    f"this repository holds {self.embedder_model_id} embeddings ({self.dim} dims); pass a "
-                    f"matching embedder (the default is {emb.model_id}, {emb.dim} dims)"
-                )
-            self._embedder = emb
+            self._embedder = matching_default_embedder(self.embedder_model_id, self.dim, "repository")
         return self._embedder
 
     # -- adding -------------------------------------------------------------------------------------
@@ -123,12 +123,9 @@ class WorldKnowledgeRepository:
             self.rejected_duplicates += 1
             return False
         source = _source(entry)
-        if self.budget is not None:
-            used = len(self._sources) if self.budget_unit == "episodes" else len(self._order)
-            new_source = self.budget_unit == "entries" or source not in self._sources
-            if new_source and used >= self.budget:
-                self.rejected_budget += 1
-                return False
+        if over_budget(self.budget, self.budget_unit, rows=len(self._order), sources=self._sources, source=source):
+            self.rejected_budget += 1
+            return False
         part.append(entry.without_embeddings(), key, text)
         self._order.append((entry.partition, part.n - 1))
         self._sources.add(source)
@@ -288,7 +285,7 @@ class WorldKnowledgeRepository:
         repo._parts = {p: PartitionIndex(repo.dim) for p in PARTITIONS}
         entries, keys, texts = read_dataset(dataset, where, repo.dim)
         if repo.budget is not None:
-            cut = _budget_prefix(entries, repo.budget, repo.budget_unit)
+            cut = budget_prefix((_source(e) for e in entries), repo.budget, repo.budget_unit)
             entries, keys, texts = entries[:cut], keys[:cut], texts[:cut]
         repo._fill_missing(entries, keys, texts)
         repo._bulk_insert(entries, keys, texts)
@@ -322,16 +319,3 @@ class WorldKnowledgeRepository:
 def _source(entry: ExperienceEntry) -> tuple[str, ...]:
     """The episode an entry came from (the unit of an `episodes` budget)."""
     return (entry.run_id, entry.benchmark, entry.subset, entry.task_id, str(entry.episode))
-
-
-def _budget_prefix(entries: list[ExperienceEntry], budget: int, unit: str) -> int:
-    """How many leading entries a repository of this budget keeps (the same ones the policy keeps)."""
-    if unit == "entries":
-        return min(len(entries), budget)
-    sources: set[tuple[str, ...]] = set()
-    for i, e in enumerate(entries):
-        src = _source(e)
-        if src not in sources and len(sources) >= budget:
-            return i
-        sources.add(src)
-    return len(entries)

@@ -33,7 +33,13 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, model_validator
 
-from worldmind_local.memory.embedder import DEFAULT_DIM, DEFAULT_MODEL_ID, Embedder, default_embedder
+from worldmind_local.memory.budget import BUDGET_UNITS, over_budget
+from worldmind_local.memory.embedder import (
+    DEFAULT_DIM,
+    DEFAULT_MODEL_ID,
+    Embedder,
+    matching_default_embedder,
+)
 from worldmind_local.memory.entries import MemoryDataError
 from worldmind_local.memory.storage import UNSET, atomic_save_dataset, resolve_settings
 
@@ -121,7 +127,7 @@ class ExperienceStore:
                  budget_unit: str = "episodes", dedup: str = "none") -> None:
         if budget is not None and budget < 0:
             raise ValueError(f"memory budget must be >= 0 or None, got {budget}")
-        if budget_unit not in ("episodes", "entries"):
+        if budget_unit not in BUDGET_UNITS:
             raise ValueError(f"budget_unit must be 'episodes' or 'entries', got {budget_unit!r}")
         if dedup not in ("none", "text"):
             raise ValueError(f"dedup must be 'none' or 'text', got {dedup!r}")
@@ -142,11 +148,7 @@ class ExperienceStore:
     def embedder(self) -> Embedder:
         """The embedder in use; without one given, the shared default all-MiniLM-L6-v2 (lazily)."""
         if self._embedder is None:
-            emb = default_embedder()
-            if (emb.model_id, emb.dim) != (self.embedder_model_id, self.dim):
-                raise ValueError(f"this store holds {self.embedder_model_id} embeddings ({self.dim} dims); "
-                                 f"pass a matching embedder")
-            self._embedder = emb
+            self._embedder = matching_default_embedder(self.embedder_model_id, self.dim, "store")
         return self._embedder
 
     # -- adding -------------------------------------------------------------------------------------
@@ -172,12 +174,9 @@ class ExperienceStore:
         if self.dedup == "text" and entry.text in self._texts:
             self.rejected_duplicates += 1
             return False
-        if self.budget is not None:
-            used = len(self._sources) if self.budget_unit == "episodes" else self._n
-            new = self.budget_unit == "entries" or entry.source not in self._sources
-            if new and used >= self.budget:
-                self.rejected_budget += 1
-                return False
+        if over_budget(self.budget, self.budget_unit, rows=self._n, sources=self._sources, source=entry.source):
+            self.rejected_budget += 1
+            return False
         self._append(entry.without_embeddings(), key)
         return True
 
@@ -389,16 +388,12 @@ class ExperienceStore:
         if missing.size:   # a hand-made dataset without vectors: compute them (loading is synchronous)
             keys[missing] = store.embedder.encode([rows[i].key_text for i in missing])
         for row, key in zip(rows, keys, strict=True):
-            if store.budget is not None and store._over_budget(row):
+            if over_budget(store.budget, store.budget_unit, rows=store._n, sources=store._sources,
+                           source=row.source):
                 break   # the prefix the budget policy would have kept
             store._append(row, store._unit(row.model_copy(update={"key_embedding": key.tolist()})))
         return store
 
-    def _over_budget(self, row: StoredExperience) -> bool:
-        assert self.budget is not None
-        if self.budget_unit == "entries":
-            return self._n >= self.budget
-        return row.source not in self._sources and len(self._sources) >= self.budget
 
 
 def _metadata(dataset: Any) -> dict[str, Any]:
